@@ -1,0 +1,59 @@
+"""``python -m app``: start the API (and the 3D viewer unless ``--no-viewer``).
+
+Every flag falls back to the environment variable ``KINOPLAN_<NAME>`` and then to the
+defaults of ``app.config.Settings``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from .config import Settings
+
+log = logging.getLogger("kinoplan")
+
+
+def parse_args(argv: list[str] | None = None) -> Settings:
+    env = Settings()
+    p = argparse.ArgumentParser(prog="python -m app", description=__doc__.splitlines()[0])
+    p.add_argument("--host", default=env.host, help="API bind address (default %(default)s)")
+    p.add_argument("--port", type=int, default=env.port, help="API port (default %(default)s)")
+    p.add_argument("--viewer-port", type=int, default=env.viewer_port,
+                   help="3D viewer port (default %(default)s)")
+    p.add_argument("--no-viewer", action="store_true", default=env.no_viewer,
+                   help="do not start the 3D viewer")
+    p.add_argument("--data-dir", type=Path, default=env.data_dir,
+                   help="directory of the SQLite store of custom robots and jobs "
+                   "(default %(default)s)")
+    p.add_argument("--workers", type=int, default=env.workers,
+                   help="job pool size (default: number of cores, %(default)s)")
+    p.add_argument("--jobs-backend", default=env.jobs_backend,
+                   help="'local' or 'dask://HOST:PORT' (default %(default)s)")
+    args = p.parse_args(argv)
+    return Settings(**{**env.model_dump(), **vars(args)})
+
+
+def main(argv: list[str] | None = None) -> int:
+    import uvicorn
+
+    from .main import create_app
+
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    settings = parse_args(argv)
+    api = create_app(settings)
+    if not settings.no_viewer:
+        from web.viewer import Viewer
+
+        api.state.viewer = Viewer.start(settings.host, settings.viewer_port)
+        first = api.state.registry.all()[0]
+        api.state.viewer.show_robot(first, first.mid_configuration())
+        log.info("3D viewer on http://%s:%d", settings.host, settings.viewer_port)
+    uvicorn.run(api, host=settings.host, port=settings.port, log_level="info")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

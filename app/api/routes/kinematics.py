@@ -1,0 +1,163 @@
+"""Kinematics of one robot: FK, Jacobian, IK, workspace."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from fastapi import APIRouter
+from fastapi.responses import JSONResponse
+
+from kinematics.errors import MethodUnavailableError
+from kinematics.fk import fk, fk_frames
+from kinematics.ik import solve_ik
+from kinematics.jacobian import dexterity, jacobian_and_pose
+from kinematics.model import RobotModel
+from kinematics.workspace import MAX_SAMPLES, sample_workspace
+
+from ..deps import RobotDep
+from ..errors import conflict, invalid, too_large
+from ..schemas import (
+    MAX_FK_CONFIGS,
+    MAX_FRAMES_CONFIGS,
+    MAX_IK_POSES,
+    FKRequest,
+    FKResponse,
+    IKRequest,
+    IKResponse,
+    JacobianRequest,
+    JacobianResponse,
+    WorkspaceRequest,
+    WorkspaceResponse,
+)
+
+router = APIRouter(prefix="/robots/{robot_id}", tags=["kinematics"])
+
+
+def joint_rows(model: RobotModel, q: list, field: str = "q") -> tuple[np.ndarray, bool]:
+    """Body ``q`` (one configuration or a list) -> ``(N, dof)`` array and whether it was one."""
+    single = len(q) == 0 or not isinstance(q[0], list)
+    rows = [q] if single else q
+    for k, row in enumerate(rows):
+        if len(row) != model.dof:
+            loc = [field] if single else [field, k]
+            raise invalid(
+                loc, f"expected {model.dof} joint values for robot '{model.id}', got {len(row)}"
+            )
+    return np.asarray(rows, dtype=float).reshape(len(rows), model.dof), single
+
+
+def _nan_to_none(x: float) -> float | None:
+    return None if math.isnan(x) else float(x)
+
+
+@router.post("/fk", response_model=FKResponse)
+def forward_kinematics(robot: RobotDep, body: FKRequest) -> JSONResponse:
+    """Tool pose (and optionally every link frame) for one or many configurations."""
+    n = 1 if not body.q or not isinstance(body.q[0], list) else len(body.q)
+    cap = MAX_FRAMES_CONFIGS if body.frames == "all" else MAX_FK_CONFIGS
+    if n > cap:
+        raise too_large(["q"], f"at most {cap} configurations per call with frames="
+                        f"'{body.frames}', got {n}")
+    q, _ = joint_rows(robot, body.q)
+    out: dict = {"within_limits": robot.within_limits(q).tolist()}
+    if body.frames == "all":
+        F = fk_frames(robot, q)
+        out["poses"] = F[:, -1].tolist()
+        out["frames"] = F.tolist()
+    else:
+        out["poses"] = fk(robot, q).tolist()
+    return JSONResponse(out)
+
+
+@router.post("/jacobian", response_model=JacobianResponse)
+def jacobian_endpoint(robot: RobotDep, body: JacobianRequest) -> JacobianResponse:
+    """Geometric Jacobian in the base frame, with manipulability and condition number."""
+    q, _ = joint_rows(robot, body.q)
+    J, T = jacobian_and_pose(robot, q[0])
+    dx = dexterity(robot, J)
+    return JacobianResponse(
+        jacobian=J.tolist(),
+        manipulability=dx.manipulability,
+        condition=None if math.isinf(dx.condition) else dx.condition,
+        min_singular_value=dx.min_singular_value,
+        pose=T.tolist(),
+    )
+
+
+@router.post("/ik", response_model=IKResponse)
+def inverse_kinematics(robot: RobotDep, body: IKRequest) -> JSONResponse:
+    """Joint solutions for one or many target poses; unreachable targets say why."""
+    try:
+        T = np.asarray(body.pose, dtype=float)
+    except ValueError:
+        raise invalid(["pose"], "pose must be a 4x4 matrix or a list of 4x4 matrices") from None
+    if T.ndim == 2:
+        T = T[None]
+    if T.ndim != 3 or T.shape[1:] != (4, 4):
+        raise invalid(["pose"], "pose must be a 4x4 matrix or a list of 4x4 matrices")
+    if T.shape[0] > MAX_IK_POSES:
+        raise too_large(["pose"], f"at most {MAX_IK_POSES} poses per call, got {T.shape[0]}")
+    q0 = None
+    if body.q0 is not None:
+        q0 = joint_rows(robot, body.q0, "q0")[0][0]
+    try:
+        results = solve_ik(
+            robot, T, method=body.method, q0=q0, all_solutions=body.all_solutions
+        )
+    except MethodUnavailableError as exc:
+        if exc.method == "learned":
+            raise conflict(["method"], str(exc)) from None
+        raise invalid(["method"], str(exc)) from None
+    except ValueError as exc:
+        raise invalid(["pose"], str(exc)) from None
+    payload = [
+        {
+            "success": r.success,
+            "status": r.status.value,
+            "q": None if r.q is None else r.q.tolist(),
+            "solutions": r.solutions.tolist(),
+            "position_error": _nan_to_none(r.position_error),
+            "rotation_error": _nan_to_none(r.rotation_error),
+            "within_limits": bool(r.within_limits),
+            "singular": bool(r.singular),
+            "method": r.method,
+            "message": r.message,
+        }
+        for r in results
+    ]
+    return JSONResponse({"results": payload})
+
+
+@router.post("/workspace", response_model=WorkspaceResponse)
+def workspace(robot: RobotDep, body: WorkspaceRequest) -> JSONResponse:
+    """Monte Carlo workspace: extents, radial and vertical ranges, volume, points."""
+    if body.samples > MAX_SAMPLES:
+        raise too_large(
+            ["samples"], f"at most {MAX_SAMPLES} samples per call, got {body.samples}; "
+            "submit a 'workspace' job for more"
+        )
+    ws = sample_workspace(robot, body.samples, seed=body.seed, voxel=body.voxel)
+    k = min(body.return_points, ws.samples)
+    idx = np.random.default_rng(body.seed).choice(ws.samples, size=k, replace=False)
+    out = {
+        "samples": ws.samples,
+        "seed": ws.seed,
+        "min": ws.min.tolist(),
+        "max": ws.max.tolist(),
+        "radial": list(ws.radial),
+        "vertical": list(ws.vertical),
+        "voxel": ws.voxel,
+        "volume": ws.volume,
+        "points": ws.points[np.sort(idx)].tolist(),
+    }
+    if body.projections:
+        out["projections"] = {
+            name: {
+                "counts": H.tolist(),
+                "first_edges": ws.edges[name][0].tolist(),
+                "second_edges": ws.edges[name][1].tolist(),
+            }
+            for name, H in ws.projections.items()
+        }
+    return JSONResponse(out)

@@ -1,0 +1,168 @@
+"""Request and response bodies of the REST API (units: mm, rad, s; poses are 4x4 lists)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from kinematics.workspace import DEFAULT_SAMPLES
+
+__all__ = [
+    "MAX_FK_CONFIGS",
+    "MAX_FRAMES_CONFIGS",
+    "MAX_IK_POSES",
+    "MAX_RETURN_POINTS",
+    "Health",
+    "JointSummary",
+    "RobotSummary",
+    "FKRequest",
+    "FKResponse",
+    "JacobianRequest",
+    "JacobianResponse",
+    "IKRequest",
+    "IKResult",
+    "IKResponse",
+    "WorkspaceRequest",
+    "WorkspaceResponse",
+]
+
+#: Most configurations in one FK call (413 above).
+MAX_FK_CONFIGS = 100_000
+#: Most configurations in one FK call with ``frames: "all"`` (413 above).
+MAX_FRAMES_CONFIGS = 10_000
+#: Most target poses in one IK call (413 above).
+MAX_IK_POSES = 10_000
+#: Most points a workspace answer carries.
+MAX_RETURN_POINTS = 200_000
+
+Matrix = list[list[float]]
+
+
+class Body(BaseModel):
+    """Request bodies: unknown fields and NaN/inf are rejected (422)."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class Health(BaseModel):
+    status: Literal["ok"]
+    version: str
+    jobs_backend: str
+
+
+class JointSummary(BaseModel):
+    name: str
+    type: Literal["revolute", "prismatic"]
+    lower: float
+    upper: float
+
+
+class RobotSummary(BaseModel):
+    id: str
+    name: str
+    dof: int
+    builtin: bool
+    convention: Literal["mdh", "sdh", "poe"]
+    joints: list[JointSummary]
+    ik_methods: list[str]
+
+
+class FKRequest(Body):
+    q: list[float] | list[list[float]] = Field(
+        description="One configuration (dof values) or a list of them; rad or mm per joint"
+    )
+    frames: Literal["tool", "all"] = Field(
+        "tool", description="'all' also returns every link frame (base, after each joint, tool)"
+    )
+
+
+class FKResponse(BaseModel):
+    poses: list[Matrix]
+    frames: list[list[Matrix]] | None = None
+
+
+class JacobianRequest(Body):
+    q: list[float] = Field(description="One configuration (dof values)")
+
+
+class JacobianResponse(BaseModel):
+    jacobian: list[list[float]] = Field(
+        description="6 x dof: rows vx, vy, vz (mm per joint unit), wx, wy, wz (rad per joint "
+        "unit), base frame"
+    )
+    manipulability: float = Field(description="sqrt(det(J J^T)) of the raw Jacobian")
+    condition: float | None = Field(
+        description="Condition number of the unit-normalised Jacobian; null when singular"
+    )
+    min_singular_value: float = Field(
+        description="Smallest singular value of the unit-normalised Jacobian (0 = singular)"
+    )
+    pose: Matrix
+
+
+class IKRequest(Body):
+    pose: Matrix | list[Matrix] = Field(description="Target tool pose (4x4) or a list of them")
+    q0: list[float] | None = Field(
+        None, description="Initial guess / preferred configuration; solutions nearest it first"
+    )
+    method: Literal["auto", "analytic", "numeric", "learned"] = "auto"
+    all_solutions: bool = Field(
+        False, description="Return every solution found (closed forms: every branch and turn)"
+    )
+
+
+class IKResult(BaseModel):
+    success: bool
+    status: Literal["ok", "unreachable", "out_of_limits", "not_converged"]
+    q: list[float] | None
+    solutions: list[list[float]]
+    position_error: float | None = Field(description="mm; null when nothing was computed")
+    rotation_error: float | None = Field(description="rad; null when nothing was computed")
+    within_limits: bool
+    singular: bool
+    method: str
+    message: str
+
+
+class IKResponse(BaseModel):
+    results: list[IKResult]
+
+
+class WorkspaceRequest(Body):
+    samples: int = Field(
+        DEFAULT_SAMPLES, ge=1, description="Monte Carlo samples (413 above 2,000,000)"
+    )
+    seed: int = Field(0, ge=0, description="Seed of the random joint samples")
+    voxel: float | None = Field(
+        None, gt=0, description="Voxel edge (mm) of the volume estimate; default extent/30"
+    )
+    return_points: int = Field(
+        20_000, ge=0, le=MAX_RETURN_POINTS, description="Points to return (subsampled)"
+    )
+    projections: bool = Field(True, description="Include XY/XZ/YZ occupancy images")
+
+
+class Projection(BaseModel):
+    counts: list[list[int]]
+    first_edges: list[float]
+    second_edges: list[float]
+
+
+class WorkspaceResponse(BaseModel):
+    samples: int
+    seed: int
+    min: list[float]
+    max: list[float]
+    radial: list[float] = Field(description="[min, max] distance from the base z axis, mm")
+    vertical: list[float] = Field(description="[min, max] height along the base z axis, mm")
+    voxel: float
+    volume: float = Field(description="mm^3, voxel estimate")
+    points: list[list[float]]
+    projections: dict[str, Projection] | None = None
+
+
+class ViewerShowRequest(Body):
+    robot: str | None = Field(None, description="Robot id to show")
+    q: list[float] | None = Field(None, description="Configuration; default mid-limits")
+    job: str | None = Field(None, description="A finished job whose result to show")

@@ -1,0 +1,70 @@
+"""Builds the FastAPI application: ``create_app(settings)``; ``app`` uses the defaults."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+
+from . import __version__
+from .api.routes import health, kinematics, robots, viewer
+from .config import Settings
+from .registry import RobotRegistry
+
+__all__ = ["create_app", "app"]
+
+DESCRIPTION = """Kinematics and motion planning for heavy-duty hydraulic arms and industrial
+robots. Units: mm, rad, s. Poses are 4x4 homogeneous matrices as nested lists (row-major)."""
+
+
+def _is_branch_tag(part: object) -> bool:
+    return isinstance(part, str) and ("[" in part or part in {"float", "int", "str", "bool"})
+
+
+def simplify_errors(errors: Sequence[dict]) -> list[dict]:
+    """Pydantic's errors for a field typed as a union (e.g. one configuration or a list of
+    them) list every branch's failures under a type tag in ``loc``. Keep the branch that came
+    closest (fewest errors) and drop the tags, so the message names the field plainly."""
+    groups: dict[tuple, dict[str, list[dict]]] = {}
+    plain: list[dict] = []
+    for e in errors:
+        loc = list(e.get("loc", []))
+        item = {"loc": loc, "msg": e.get("msg", ""), "type": e.get("type", "")}
+        tag_at = next((i for i, part in enumerate(loc) if _is_branch_tag(part)), None)
+        if tag_at is None:
+            plain.append(item)
+            continue
+        item["loc"] = loc[:tag_at] + loc[tag_at + 1 :]
+        groups.setdefault(tuple(loc[:tag_at]), {}).setdefault(str(loc[tag_at]), []).append(item)
+    for branches in groups.values():
+        # Fewest errors wins; on a tie, the branch that got deeper into the input.
+        plain.extend(
+            min(branches.values(), key=lambda es: (len(es), -max(len(e["loc"]) for e in es)))
+        )
+    return plain
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """A new application with its own settings, robot registry and (optional) viewer."""
+    settings = settings or Settings()
+    api = FastAPI(title="kinoplan", version=__version__, description=DESCRIPTION)
+    api.state.settings = settings
+    api.state.registry = RobotRegistry()
+    api.state.viewer = None
+    api.include_router(health.router)
+    api.include_router(robots.router)
+    api.include_router(kinematics.router)
+    api.include_router(viewer.router)
+
+    @api.exception_handler(RequestValidationError)
+    async def _validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
+        # FastAPI's default, minus the echoed input: a rejected 100,000-row body should not
+        # come back in the error.
+        return JSONResponse(status_code=422, content={"detail": simplify_errors(exc.errors())})
+
+    return api
+
+
+app = create_app()
