@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from .model import RobotModel
+from .transforms import rot_x, trans
 
 __all__ = ["as_batch", "fk", "fk_frames", "joint_axes"]
 
@@ -22,33 +25,106 @@ def as_batch(model: RobotModel, q) -> tuple[np.ndarray, bool]:
     return q2, single
 
 
-def _dh_links(model: RobotModel, q: np.ndarray) -> list[np.ndarray]:
-    """Link transforms ``T_{i-1,i}`` as a list of ``(N, 4, 4)``, one per joint."""
-    n = q.shape[0]
-    links = []
-    for i, j in enumerate(model.joints):
+def _right_multiply(T: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """``T (N, 4, 4) @ A (4, 4)`` as one matrix product over all rows (one BLAS call)."""
+    return (T.reshape(-1, 4) @ A).reshape(T.shape)
+
+
+# The D-H chain is carried as four contiguous (3, N) arrays, the columns X, Y, Z, P of the
+# running pose, rather than as (N, 4, 4) matrices: a joint's motion then costs a few
+# contiguous vector operations instead of a batched 4x4 product.
+Columns = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _mix(cols: Columns, coeffs: np.ndarray, extra: np.ndarray | None = None) -> np.ndarray:
+    """``sum_k coeffs[k] * cols[k] (+ extra)``, skipping zero coefficients."""
+    out = extra
+    for k in range(3):
+        a = coeffs[k]
+        if a == 0.0:
+            continue
+        term = cols[k] if a == 1.0 else a * cols[k]
+        out = term if out is None else out + term
+    return np.zeros_like(cols[0]) if out is None else out
+
+
+def _times_constant(cols: Columns, A: np.ndarray) -> Columns:
+    """Columns of ``T @ A`` for a constant rigid ``A (4, 4)``."""
+    return (
+        _mix(cols, A[:3, 0]),
+        _mix(cols, A[:3, 1]),
+        _mix(cols, A[:3, 2]),
+        _mix(cols, A[:3, 3], cols[3]),
+    )
+
+
+def cos_sin(theta) -> tuple[np.ndarray, np.ndarray]:
+    """cos and sin of an array by the tangent half-angle: one vectorised ``tan`` instead of
+    ``cos`` and ``sin`` (numpy's float64 ``tan`` has a SIMD kernel where ``cos``/``sin`` may
+    not). Accurate to a few ulp over the whole circle, including at theta = pi."""
+    t = np.tan(0.5 * np.asarray(theta, dtype=float))
+    t2 = t * t
+    inv = 1.0 / (1.0 + t2)
+    return (1.0 - t2) * inv, 2.0 * t * inv
+
+
+def _turn_and_slide(cols: Columns, theta, d) -> Columns:
+    """Columns of ``T @ RotZ(theta) @ TransZ(d)``; theta, d scalars or ``(N,)``."""
+    X, Y, Z, P = cols
+    c, s = cos_sin(theta) if np.ndim(theta) else (np.cos(theta), np.sin(theta))
+    return c * X + s * Y, c * Y - s * X, Z, P + d * Z
+
+
+def _columns_to_poses(cols: Columns, n: int) -> np.ndarray:
+    """``(N, 4, 4)`` poses, a view into one ``(4, 4, N)`` buffer filled row-block by row-block
+    (contiguous writes; the transposed view costs nothing)."""
+    buf = np.zeros((4, 4, n))
+    for k in range(4):
+        buf[:3, k, :] = cols[k]
+    buf[3, 3, :] = 1.0
+    return buf.transpose(2, 0, 1)
+
+
+@lru_cache(maxsize=256)
+def _link_constants(model: RobotModel) -> tuple[np.ndarray | None, ...]:
+    """Per joint, the constant part of its D-H transform (None when it is the identity):
+    ``RotX(alpha) TransX(a)`` (modified) or ``TransX(a) RotX(alpha)`` (standard)."""
+    out = []
+    for j in model.joints:
+        if j.alpha == 0.0 and j.a == 0.0:
+            out.append(None)
+            continue
+        A = rot_x(j.alpha) @ trans(j.a) if model.convention == "mdh" else trans(j.a) @ rot_x(
+            j.alpha
+        )
+        # cos(pi/2) is 6e-17, not 0: snap such round-off so the column mixing can skip the
+        # term (a change far below the precision of any length here).
+        for v in (0.0, 1.0, -1.0):
+            A[np.abs(A - v) < 1e-15] = v
+        out.append(A)
+    return tuple(out)
+
+
+def _dh_columns(model: RobotModel, q: np.ndarray, keep: bool) -> tuple[Columns, list[Columns]]:
+    """Modified D-H: ``RotX(alpha) TransX(a)`` then ``RotZ(theta) TransZ(d)``; standard D-H:
+    the joint's ``RotZ(theta) TransZ(d)`` then ``TransX(a) RotX(alpha)``."""
+    # Base columns as (3, 1): they broadcast to (3, N) at the first joint that moves.
+    cols: Columns = tuple(model.base[:3, k, None].copy() for k in range(4))
+    frames = [cols] if keep else []
+    mdh = model.convention == "mdh"
+    for i, (j, const) in enumerate(zip(model.joints, _link_constants(model))):
+        fixed = const is None
+        if mdh and not fixed:
+            cols = _times_constant(cols, const)
         if j.revolute:
-            theta = q[:, i] + j.offset
-            d = np.full(n, j.d)
+            cols = _turn_and_slide(cols, q[:, i] + j.offset, j.d)
         else:
-            theta = np.full(n, j.theta)
-            d = q[:, i] + j.offset
-        ct, st = np.cos(theta), np.sin(theta)
-        ca, sa = np.cos(j.alpha), np.sin(j.alpha)
-        T = np.zeros((n, 4, 4))
-        if model.convention == "mdh":
-            # RotX(alpha) TransX(a) RotZ(theta) TransZ(d)
-            T[:, 0, 0], T[:, 0, 1], T[:, 0, 3] = ct, -st, j.a
-            T[:, 1, 0], T[:, 1, 1], T[:, 1, 2], T[:, 1, 3] = st * ca, ct * ca, -sa, -sa * d
-            T[:, 2, 0], T[:, 2, 1], T[:, 2, 2], T[:, 2, 3] = st * sa, ct * sa, ca, ca * d
-        else:
-            # RotZ(theta) TransZ(d) TransX(a) RotX(alpha)
-            T[:, 0, 0], T[:, 0, 1], T[:, 0, 2], T[:, 0, 3] = ct, -st * ca, st * sa, j.a * ct
-            T[:, 1, 0], T[:, 1, 1], T[:, 1, 2], T[:, 1, 3] = st, ct * ca, -ct * sa, j.a * st
-            T[:, 2, 1], T[:, 2, 2], T[:, 2, 3] = sa, ca, d
-        T[:, 3, 3] = 1.0
-        links.append(T)
-    return links
+            cols = _turn_and_slide(cols, j.theta, q[:, i] + j.offset)
+        if not mdh and not fixed:
+            cols = _times_constant(cols, const)
+        if keep:
+            frames.append(cols)
+    return cols, frames
 
 
 def _screw_exp(axis: np.ndarray, point: np.ndarray | None, x: np.ndarray) -> np.ndarray:
@@ -82,7 +158,11 @@ def _poe_links(model: RobotModel, q: np.ndarray) -> list[np.ndarray]:
 
 
 def _chain(model: RobotModel, q: np.ndarray, keep: bool) -> tuple[np.ndarray, list[np.ndarray]]:
-    links = _poe_links(model, q) if model.convention == "poe" else _dh_links(model, q)
+    if model.convention != "poe":
+        cols, frames = _dh_columns(model, q, keep)
+        n = q.shape[0]
+        return _columns_to_poses(cols, n), [_columns_to_poses(c, n) for c in frames]
+    links = _poe_links(model, q)
     T = np.broadcast_to(model.base, (q.shape[0], 4, 4))
     frames = [T] if keep else []
     for L in links:
@@ -95,10 +175,12 @@ def _chain(model: RobotModel, q: np.ndarray, keep: bool) -> tuple[np.ndarray, li
 def fk(model: RobotModel, q) -> np.ndarray:
     """Tool poses. ``q: (N, dof) -> (N, 4, 4)``, or ``(dof,) -> (4, 4)``; base frame, mm."""
     q2, single = as_batch(model, q)
-    T, _ = _chain(model, q2, keep=False)
-    if model.home is not None:
-        T = T @ model.home
-    T = T @ model.tool
+    if model.convention == "poe":
+        T, _ = _chain(model, q2, keep=False)
+        T = _right_multiply(T, model.home @ model.tool)
+    else:
+        cols, _ = _dh_columns(model, q2, keep=False)
+        T = _columns_to_poses(_times_constant(cols, model.tool), q2.shape[0])
     return T[0] if single else T
 
 
@@ -142,8 +224,12 @@ def joint_axes(model: RobotModel, q2: np.ndarray) -> tuple[np.ndarray, np.ndarra
             points[:, i] = Tp[:, :3, :3] @ p + Tp[:, :3, 3]
         T_tool = T @ model.home @ model.tool
         return axes, points, T_tool
-    T, frames = _chain(model, q2, keep=True)
+    last, frames = _dh_columns(model, q2, keep=True)
     # MDH: joint i moves about z of frame i; SDH: about z of frame i-1.
     src = frames[1:] if model.convention == "mdh" else frames[:-1]
-    F = np.stack(src, axis=1)
-    return F[..., :3, 2], F[..., :3, 3], T @ model.tool
+    axes = np.empty((n, model.dof, 3))
+    points = np.empty((n, model.dof, 3))
+    for i, (_, _, Z, P) in enumerate(src):
+        axes[:, i] = Z.T
+        points[:, i] = P.T
+    return axes, points, _columns_to_poses(_times_constant(last, model.tool), n)

@@ -19,6 +19,8 @@ MAX_SAMPLES = 2_000_000
 CHUNK = 50_000
 #: Voxel edge used when none is given: the largest extent divided by this.
 AUTO_VOXEL_DIVISIONS = 30
+#: Finest voxel grid accepted for the volume estimate.
+MAX_VOXELS_PER_AXIS = 100_000
 #: Cells along each axis of the projection images.
 PROJECTION_BINS = 64
 
@@ -78,6 +80,11 @@ def sample_workspace(
     extent = float(np.max(hi - lo))
     if voxel is None:
         voxel = max(extent / AUTO_VOXEL_DIVISIONS, 1e-6)
+    if extent / voxel > MAX_VOXELS_PER_AXIS:
+        raise ValueError(
+            f"voxel {voxel} mm is too small for a workspace {extent:.1f} mm across: at most "
+            f"{MAX_VOXELS_PER_AXIS} voxels per axis"
+        )
     cells = np.floor((points - lo) / voxel).astype(np.int64)
     volume = float(len(np.unique(cells, axis=0))) * voxel**3
 

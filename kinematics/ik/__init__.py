@@ -30,12 +30,15 @@ __all__ = [
 ]
 
 IKMethod = Literal["auto", "analytic", "numeric", "learned"]
-AnalyticSolver = Callable[[RobotModel, np.ndarray, "np.ndarray | None"], IKResult]
+AnalyticSolver = Callable[[RobotModel, np.ndarray, "np.ndarray | None"], list[IKResult]]
 
 #: Largest departure from a rigid transform accepted in a target pose. Generous enough for
 #: matrices printed to four decimals (as in the papers); the target is then projected onto
 #: the nearest rigid pose.
 RIGIDITY_TOL = 2e-3
+
+#: Largest |coordinate| (mm) of a target position; beyond it the numbers stop being useful.
+MAX_COORDINATE = 1e9
 
 _CLOSED_FORMS = (pile_driver, spherical_wrist)
 
@@ -68,6 +71,13 @@ def prepare_targets(T: np.ndarray) -> np.ndarray:
     bad = ~np.all(np.isfinite(T), axis=(1, 2))
     if bad.any():
         raise ValueError(f"pose[{int(np.argmax(bad))}] has a NaN or infinite entry")
+    far = np.abs(T[:, :3, 3]).max(axis=1) > MAX_COORDINATE
+    if far.any():
+        k = int(np.argmax(far))
+        raise ValueError(
+            f"pose[{k}] has a position coordinate beyond {MAX_COORDINATE:.0e} mm: no arm "
+            "reaches there"
+        )
     err = rigidity_error(T)
     if np.any(err > RIGIDITY_TOL):
         k = int(np.argmax(err > RIGIDITY_TOL))
@@ -114,7 +124,7 @@ def solve_ik(
     if method not in ("auto", "analytic", "numeric"):
         raise ValueError(f"unknown IK method {method!r}")
     if closed is not None and method in ("auto", "analytic"):
-        results = [closed(model, Tk, q0) for Tk in T]
+        results = closed(model, T, q0)
     else:
         results = solve_batch(model, T, q0, all_solutions=all_solutions, options=options)
     if not all_solutions:

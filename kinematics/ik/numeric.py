@@ -32,6 +32,9 @@ from .result import IKResult, IKStatus, order_by_distance
 __all__ = ["NumericOptions", "solve_batch"]
 
 METHOD = "numeric"
+#: Weight of the position in the seed-table distance: the arm branch (shoulder, elbow) is
+#: what a start must get right; the wrist finds its way from anywhere.
+POSITION_FEATURE_WEIGHT = 3.0
 #: Squared normalised task error below which the joint-limit weights are switched off.
 WEIGHT_OFF_COST = 1e-6
 
@@ -43,7 +46,7 @@ class NumericOptions:
     tol_position: float = 1e-5
     tol_rotation: float = 1e-8
     max_iterations: int = 30
-    restarts: int = 32
+    restarts: int = 64
     restart_batch: int = 8
     lambda0: float = 1e-2
     seed: int = 0
@@ -80,7 +83,10 @@ def _seed_table(model: RobotModel, size: int, seed: int) -> tuple[np.ndarray, np
 def _features(model: RobotModel, T: np.ndarray) -> np.ndarray:
     """Pose features for nearest-neighbour seeding: position / length_scale and rotation."""
     return np.concatenate(
-        [T[..., :3, 3] / model.length_scale, T[..., :3, :3].reshape(T.shape[:-2] + (9,))],
+        [
+            POSITION_FEATURE_WEIGHT * T[..., :3, 3] / model.length_scale,
+            T[..., :3, :3].reshape(T.shape[:-2] + (9,)),
+        ],
         axis=-1,
     )
 

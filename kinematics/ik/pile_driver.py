@@ -31,8 +31,7 @@ import math
 import numpy as np
 
 from ..model import RobotModel
-from ..transforms import rot_x, rot_z
-from ._wrist import is_right_angle, is_zero, reduce_target, wrist_angles
+from ._wrist import is_right_angle, is_zero, reduce_targets, rx, rz, wrist_angles
 from .result import IKResult, finish_analytic
 
 __all__ = ["supports", "solve"]
@@ -60,64 +59,78 @@ def supports(model: RobotModel) -> bool:
     )
 
 
-def solve(model: RobotModel, T_target: np.ndarray, q0: np.ndarray | None = None) -> IKResult:
-    """All IK branches for one rigid target pose ``(4, 4)`` (tool frame, base frame, mm)."""
+def solve(
+    model: RobotModel, T_target: np.ndarray, q0: np.ndarray | None = None
+) -> list[IKResult]:
+    """Every IK branch for rigid target poses ``(B, 4, 4)`` (tool frame, base frame, mm),
+    solved for all targets at once; one ``IKResult`` per target."""
     j = model.joints
+    B = T_target.shape[0]
     off = np.array([jt.offset for jt in j])
     hint = q0 if q0 is not None else model.mid_configuration()
     hint_234 = float(np.sum(hint[1:4] + off[1:4]))
-    G = reduce_target(model, T_target)
-    px, py, pz = G[:3, 3]
+    G = reduce_targets(model, T_target)
+    px, py, pz = G[:, 0, 3], G[:, 1, 3], G[:, 2, 3]
     sa1 = math.copysign(1.0, math.sin(j[1].alpha))
     L1, L2, L3, L4 = j[1].a, j[2].a, j[3].a, j[4].a
     d1, L5 = j[0].d, j[4].d
     # Tool point seen from frame 4 (before the tilt joint): (L4, -sin(alpha4) L5).
     w4x, w4y = L4, -math.sin(j[4].alpha) * L5
+    cb = round(math.cos(j[4].alpha + j[5].alpha))
 
     # eq. 5: theta1 = atan2(py, px) (the arm has no sideways offset); + pi reaches backwards.
-    singular = False
-    if math.hypot(px, py) < 1e-9:
-        singular = True
-        theta1s = [hint[0] + off[0]]
-    else:
-        theta1s = [math.atan2(py, px), math.atan2(py, px) + math.pi]
+    on_axis = np.hypot(px, py) < 1e-9
+    t1 = np.arctan2(py, px)[:, None] + np.array([0.0, math.pi])  # (B, 2)
+    t1[on_axis] = hint[0] + off[0]
 
-    branches = []
-    reasons = []
-    for t1 in theta1s:
-        # eq. 3: T01^-1 T06; its rotation, less the boom's twist, is the wrist problem.
-        N = rot_x(-j[1].alpha)[:3, :3] @ rot_z(-t1)[:3, :3] @ G[:3, :3]
-        wrists, wsing = wrist_angles(N, j[4].alpha, j[5].alpha, hint_234)
-        if wsing:
-            # Any theta_234 of the family will do for the orientation; the position and the
-            # limits decide. Try the hint first, then a fine sweep of the whole circle.
-            singular = True
-            t_a, t_5, t_6 = wrists[0]
-            sweep = hint_234 + np.linspace(-math.pi, math.pi, SINGULAR_SWEEP, endpoint=False)
-            wrists = [(t_a + dt, t_5, t_6 - math.cos(j[4].alpha + j[5].alpha) * dt)
-                      for dt in np.concatenate([[0.0], sweep - hint_234])]
-        for t234, t5, t6 in wrists:
-            # k1, k2 of eq. 14: the planar position of the stick tip (frame 4 origin).
-            c234, s234 = math.cos(t234), math.sin(t234)
-            k1 = math.cos(t1) * px + math.sin(t1) * py - L1 - (c234 * w4x - s234 * w4y)
-            k2 = (pz - d1) / sa1 - (s234 * w4x + c234 * w4y)
-            # eq. 7, corrected: c3 = (m1 + m2) / (2 L2 L3).
-            c3 = (k1 * k1 + k2 * k2 - L2 * L2 - L3 * L3) / (2 * L2 * L3)
-            if abs(c3) > 1 + 1e-12:
-                reasons.append(
-                    f"the stick tip would be {math.hypot(k1, k2):.1f} mm from the boom pivot, "
-                    f"outside [{abs(L2 - L3):.1f}, {L2 + L3:.1f}] mm"
-                )
-                continue
-            c3 = max(-1.0, min(1.0, c3))
-            for sign in (1.0, -1.0):
-                s3 = sign * math.sqrt(1.0 - c3 * c3)  # eq. 7
-                t3 = math.atan2(s3, c3)  # eq. 6
-                t2 = math.atan2(k2, k1) - math.atan2(L3 * s3, L2 + L3 * c3)  # eq. 14
-                t4 = t234 - t2 - t3  # eq. 17
-                branches.append(np.array([t1, t2, t3, t4, t5, t6]) - off)
-    reason = reasons[0] if reasons else None
+    # eq. 3: T01^-1 T06; its rotation, less the boom's twist, is the wrist problem.
+    N = rx(-j[1].alpha) @ np.swapaxes(rz(t1), -1, -2) @ G[:, None, :3, :3]
+    t234, t5, t6, wsing = wrist_angles(
+        N.reshape(-1, 3, 3), j[4].alpha, j[5].alpha, np.full(2 * B, hint_234)
+    )
+    owner = np.repeat(np.arange(B), 4)  # (B * 2 shoulder * 2 wrist)
+    cand = np.stack([np.repeat(t1.reshape(-1), 2), t234.reshape(-1), t5.reshape(-1),
+                     t6.reshape(-1)], axis=1)
+    if wsing.any():
+        # Any theta_234 of the family will do for the orientation; the position and the
+        # limits decide. Try the hint, then a fine sweep of the whole circle.
+        rows = np.flatnonzero(np.repeat(wsing, 2))
+        dt = np.concatenate([[0.0], np.linspace(-math.pi, math.pi, SINGULAR_SWEEP,
+                                                endpoint=False)])
+        sweep = np.repeat(cand[rows], len(dt), axis=0)
+        shift = np.tile(dt, len(rows))
+        sweep[:, 1] += shift
+        sweep[:, 3] -= cb * shift
+        cand = np.concatenate([cand, sweep])
+        owner = np.concatenate([owner, np.repeat(owner[rows], len(dt))])
+
+    c1, s1 = np.cos(cand[:, 0]), np.sin(cand[:, 0])
+    c234, s234 = np.cos(cand[:, 1]), np.sin(cand[:, 1])
+    # k1, k2 of eq. 14: the planar position of the stick tip (frame 4 origin).
+    k1 = c1 * px[owner] + s1 * py[owner] - L1 - (c234 * w4x - s234 * w4y)
+    k2 = (pz[owner] - d1) / sa1 - (s234 * w4x + c234 * w4y)
+    # eq. 7, corrected: c3 = (m1 + m2) / (2 L2 L3).
+    c3 = (k1 * k1 + k2 * k2 - L2 * L2 - L3 * L3) / (2 * L2 * L3)
+    c3 = np.where(np.abs(c3) > 1 + 1e-12, np.nan, np.clip(c3, -1.0, 1.0))
+    s3 = np.sqrt(1.0 - c3 * c3)[:, None] * np.array([1.0, -1.0])  # eq. 7, both elbows
+    c3b = np.broadcast_to(c3[:, None], s3.shape)
+    t3 = np.arctan2(s3, c3b)  # eq. 6
+    t2 = np.arctan2(k2, k1)[:, None] - np.arctan2(L3 * s3, L2 + L3 * c3b)  # eq. 14
+    t4 = cand[:, 1, None] - t2 - t3  # eq. 17
+    rep = lambda col: np.broadcast_to(cand[:, col, None], t2.shape)  # noqa: E731
+    branches = np.stack([rep(0), t2, t3, t4, rep(2), rep(3)], axis=-1).reshape(-1, 6) - off
+    owner2 = np.repeat(owner, 2)
+
+    reasons: list[str | None] = [None] * B
+    reach = np.hypot(k1, k2)
+    for b in range(B):
+        mine = owner == b
+        if np.all(np.isnan(c3[mine])):
+            reasons[b] = (
+                f"the stick tip would be {reach[mine].min():.1f} mm from the boom pivot at "
+                f"best, outside [{abs(L2 - L3):.1f}, {L2 + L3:.1f}] mm"
+            )
+    singular = on_axis | wsing.reshape(B, 2).any(axis=1)
     return finish_analytic(
-        model, T_target, np.array(branches).reshape(-1, 6), METHOD, q0,
-        unreachable_reason=reason, singular=singular,
+        model, T_target, branches, owner2, METHOD, q0, reasons=reasons, singular=singular
     )

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -51,23 +50,37 @@ class IKResult:
         return self.status is IKStatus.OK
 
 
-def expand_turns(model: RobotModel, q: np.ndarray) -> np.ndarray:
-    """Every copy of ``q (dof,)`` shifted by whole turns on revolute joints that lands inside the
-    limits (joints with ranges over 360° have several). Returns ``(K, dof)``; if some joint
-    has no copy inside its limits, the single wrapped ``q`` is returned unchanged."""
-    options = []
+def expand_turns(model: RobotModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every copy of the solutions ``q (K, dof)`` shifted by whole turns on revolute joints
+    that lands inside the limits (joints with ranges past 360° have several).
+
+    A solution with a joint that no turn brings inside its limits is kept once, as it is, so
+    the caller can report it as out of limits. Returns the copies ``(M, dof)`` and, for each,
+    the index of the solution it came from ``(M,)``.
+    """
+    rows = np.atleast_2d(np.asarray(q, dtype=float)).copy()
+    src = np.arange(len(rows))
+    two_pi = 2 * math.pi
+    kept_rows, kept_src = [], []
     for i, j in enumerate(model.joints):
-        v = q[i]
-        if not j.revolute:
-            options.append([v])
+        if not j.revolute or len(rows) == 0:
             continue
-        k_lo = math.ceil((j.lower - v) / (2 * math.pi) - 1e-12)
-        k_hi = math.floor((j.upper - v) / (2 * math.pi) + 1e-12)
-        vals = [v + 2 * math.pi * k for k in range(k_lo, k_hi + 1)]
-        if not vals:
-            return q[None, :].copy()
-        options.append(vals)
-    return np.array(list(itertools.product(*options)))
+        v = rows[:, i]
+        k_lo = np.ceil((j.lower - v) / two_pi - 1e-12)
+        k_hi = np.floor((j.upper - v) / two_pi + 1e-12)
+        none = k_hi < k_lo
+        if none.any():
+            kept_rows.append(rows[none])
+            kept_src.append(src[none])
+            keep = ~none
+            rows, src, v, k_lo, k_hi = rows[keep], src[keep], v[keep], k_lo[keep], k_hi[keep]
+        n_copies = (k_hi - k_lo + 1).astype(int)
+        starts = np.cumsum(n_copies) - n_copies
+        k = np.repeat(k_lo, n_copies) + np.arange(n_copies.sum()) - np.repeat(starts, n_copies)
+        rows = np.repeat(rows, n_copies, axis=0)
+        src = np.repeat(src, n_copies)
+        rows[:, i] = np.repeat(v, n_copies) + two_pi * k
+    return np.concatenate([rows, *kept_rows]), np.concatenate([src, *kept_src])
 
 
 def order_by_distance(q: np.ndarray, q0: np.ndarray | None) -> np.ndarray:
@@ -77,58 +90,75 @@ def order_by_distance(q: np.ndarray, q0: np.ndarray | None) -> np.ndarray:
     return np.argsort(np.linalg.norm(q - q0, axis=1), kind="stable")
 
 
-def _dedupe(q: np.ndarray) -> np.ndarray:
-    if len(q) == 0:
-        return q
-    keys = np.round(q, 9)
-    _, idx = np.unique(keys, axis=0, return_index=True)
-    return q[np.sort(idx)]
-
-
 def finish_analytic(
     model: RobotModel,
     T_target: np.ndarray,
     branches: np.ndarray,
+    owner: np.ndarray,
     method: str,
     q0: np.ndarray | None,
     *,
-    unreachable_reason: str | None = None,
-    singular: bool = False,
-) -> IKResult:
-    """Turn the raw branches ``(K, dof)`` of a closed form into an ``IKResult``.
+    reasons: list[str | None],
+    singular: np.ndarray,
+) -> list[IKResult]:
+    """Turn the raw branches of a closed form into one ``IKResult`` per target.
 
-    Each branch is checked by FK against the target (so an algebra slip can never return a
-    wrong answer), expanded into the extra turns the limits allow, and ordered: solutions
-    within limits first, nearest ``q0`` first.
+    ``branches (R, dof)`` are candidate solutions (NaN rows where a branch does not exist),
+    ``owner (R,)`` the target index of each; ``T_target (B, 4, 4)``; ``reasons[b]`` says why
+    target b is unreachable if no branch reaches it; ``singular (B,)``. Each branch is checked
+    by FK against its target (so an algebra slip can never return a wrong answer), expanded
+    into the extra turns the limits allow, and ordered: within limits first, nearest ``q0``
+    first.
     """
-    branches = np.asarray(branches, dtype=float).reshape(-1, model.dof)
-    if len(branches):
-        dp, dr = pose_errors(fk(model, branches), T_target[None])
-        branches = branches[(dp < BRANCH_POSITION_TOL) & (dr < BRANCH_ROTATION_TOL)]
-    if len(branches) == 0:
-        reason = unreachable_reason or "no closed-form branch reaches the target pose"
-        return IKResult(
-            IKStatus.UNREACHABLE, None, np.empty((0, model.dof)), math.nan, math.nan,
-            False, method, f"unreachable: {reason}",
-        )
-    expanded = _dedupe(np.concatenate([expand_turns(model, b) for b in branches]))
+    B = T_target.shape[0]
+    dof = model.dof
+    valid = np.all(np.isfinite(branches), axis=1)
+    rows, own = branches[valid], owner[valid]
+    dp, dr = pose_errors(fk(model, rows), T_target[own]) if len(rows) else (rows[:, 0],) * 2
+    ok = (dp < BRANCH_POSITION_TOL) & (dr < BRANCH_ROTATION_TOL)
+    rows, own, err = rows[ok], own[ok], np.stack([dp[ok], dr[ok]], axis=1)
+
+    # Whole turns leave the pose unchanged: each copy keeps its branch's residuals.
+    expanded, src = expand_turns(model, rows) if len(rows) else (rows, own)
+    own, err = own[src], err[src]
+    # Drop repeats (the same to 1e-9) per target.
+    keys = np.column_stack([own, np.round(expanded, 9)])
+    _, first = np.unique(keys, axis=0, return_index=True)
+    expanded, own, err = expanded[first], own[first], err[first]
     inside = model.within_limits(expanded)
-    good = expanded[inside]
-    if len(good) == 0:
-        outside = expanded[order_by_distance(expanded, q0)]
-        worst = model.limit_violations(outside[0])
-        dp, dr = pose_errors(fk(model, outside[0]), T_target)
-        return IKResult(
-            IKStatus.OUT_OF_LIMITS, None, outside, float(dp), float(dr), False, method,
-            f"reachable only outside the joint limits: {len(outside)} branch(es), the nearest "
-            f"violates {', '.join(worst)}",
-            singular=singular,
-        )
-    good = good[order_by_distance(good, q0)]
-    dp, dr = pose_errors(fk(model, good[0]), T_target)
-    msg = f"{len(good)} solution(s) within limits"
-    if singular:
-        msg += "; singular configuration: the solutions form a continuous family, samples returned"
-    return IKResult(
-        IKStatus.OK, good[0], good, float(dp), float(dr), True, method, msg, singular=singular
-    )
+    dist = np.zeros(len(expanded)) if q0 is None else np.linalg.norm(expanded - q0, axis=1)
+    order = np.lexsort((dist, ~inside, own))
+    expanded, own, err, inside = expanded[order], own[order], err[order], inside[order]
+    bounds = np.searchsorted(own, np.arange(B + 1))
+
+    results = []
+    for b in range(B):
+        sl = slice(bounds[b], bounds[b + 1])
+        sols, errs, ins = expanded[sl], err[sl], inside[sl]
+        sing = bool(singular[b])
+        if len(sols) == 0:
+            reason = reasons[b] or "no closed-form branch reaches the target pose"
+            results.append(IKResult(
+                IKStatus.UNREACHABLE, None, np.empty((0, dof)), math.nan, math.nan,
+                False, method, f"unreachable: {reason}",
+            ))
+        elif not ins[0]:
+            worst = model.limit_violations(sols[0])
+            results.append(IKResult(
+                IKStatus.OUT_OF_LIMITS, None, sols, float(errs[0, 0]), float(errs[0, 1]),
+                False, method,
+                f"reachable only outside the joint limits: {len(sols)} branch(es), the "
+                f"nearest violates {', '.join(worst)}",
+                singular=sing,
+            ))
+        else:
+            good = sols[ins]
+            msg = f"{len(good)} solution(s) within limits"
+            if sing:
+                msg += "; singular configuration: the solutions form a continuous family, " \
+                    "samples returned"
+            results.append(IKResult(
+                IKStatus.OK, good[0], good, float(errs[0, 0]), float(errs[0, 1]), True,
+                method, msg, singular=sing,
+            ))
+    return results

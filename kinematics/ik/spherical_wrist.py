@@ -18,8 +18,7 @@ import math
 import numpy as np
 
 from ..model import RobotModel
-from ..transforms import rot_x, rot_z
-from ._wrist import is_right_angle, is_zero, reduce_target, wrist_angles
+from ._wrist import is_right_angle, is_zero, reduce_targets, rx, rz, wrist_angles
 from .result import IKResult, finish_analytic
 
 __all__ = ["supports", "solve"]
@@ -45,13 +44,17 @@ def supports(model: RobotModel) -> bool:
     )
 
 
-def solve(model: RobotModel, T_target: np.ndarray, q0: np.ndarray | None = None) -> IKResult:
-    """All IK branches for one rigid target pose ``(4, 4)`` (tool frame, base frame, mm)."""
+def solve(
+    model: RobotModel, T_target: np.ndarray, q0: np.ndarray | None = None
+) -> list[IKResult]:
+    """Every IK branch for rigid target poses ``(B, 4, 4)`` (tool frame, base frame, mm),
+    solved for all targets at once; one ``IKResult`` per target."""
     j = model.joints
+    B = T_target.shape[0]
     off = np.array([jt.offset for jt in j])
     hint = q0 if q0 is not None else model.mid_configuration()
-    G = reduce_target(model, T_target)
-    Px, Py, Pz = G[:3, 3]
+    G = reduce_targets(model, T_target)
+    Px, Py, Pz = G[:, 0, 3], G[:, 1, 3], G[:, 2, 3]
     sa1 = math.copysign(1.0, math.sin(j[1].alpha))
     a1, a2, a3 = j[1].a, j[2].a, j[3].a
     d1, lateral = j[0].d, j[1].d + j[2].d
@@ -62,50 +65,51 @@ def solve(model: RobotModel, T_target: np.ndarray, q0: np.ndarray | None = None)
 
     # Joint 1: the wrist centre must lie in the arm plane, offset by -sin(alpha1)(d2 + d3).
     e = -sa1 * lateral
-    R_xy = math.hypot(Px, Py)
-    singular = False
-    if R_xy < abs(e) - 1e-9:
-        return finish_analytic(
-            model, T_target, np.empty((0, 6)), METHOD, q0,
-            unreachable_reason=f"the wrist centre is {R_xy:.3f} mm from the axis of joint 1, "
-            f"closer than the shoulder offset {abs(e):.3f} mm",
-        )
-    if R_xy < 1e-9:
-        singular = True  # wrist centre on joint 1's axis: any joint 1 angle will do
-        theta1s = [hint[0] + off[0]]
-    else:
-        phi = math.atan2(Py, Px)
-        s = math.asin(max(-1.0, min(1.0, e / R_xy)))
-        theta1s = [phi - s, phi - math.pi + s]
+    R_xy = np.hypot(Px, Py)
+    on_axis = R_xy < 1e-9  # wrist centre on joint 1's axis: any joint 1 angle will do
+    too_close = R_xy < abs(e) - 1e-9
+    asin = np.arcsin(np.clip(e / np.where(on_axis, 1.0, R_xy), -1.0, 1.0))
+    phi = np.arctan2(Py, Px)
+    t1 = np.stack([phi - asin, phi - math.pi + asin], axis=1)  # (B, 2) shoulder branches
+    t1[on_axis] = hint[0] + off[0]
+    t1[too_close] = np.nan
 
-    branches = []
-    reasons = []
-    for t1 in theta1s:
-        c1, s1 = math.cos(t1), math.sin(t1)
-        X = c1 * Px + s1 * Py - a1
-        Y = (Pz - d1) / sa1
-        K = (X * X + Y * Y - a2 * a2 - rho * rho) / (2 * a2 * rho)
-        if abs(K) > 1 + 1e-12:
-            dist = math.hypot(X, Y)
-            reasons.append(
-                f"the wrist centre is {dist:.1f} mm from the shoulder axis, outside the "
-                f"arm's reach [{abs(a2 - rho):.1f}, {a2 + rho:.1f}] mm"
-            )
-            continue
-        K = max(-1.0, min(1.0, K))
-        for elbow in (1.0, -1.0):
-            t3 = -psi + elbow * math.acos(K)
-            u = a2 + math.cos(t3) * w3x - math.sin(t3) * w3y
-            v = math.sin(t3) * w3x + math.cos(t3) * w3y
-            t2 = math.atan2(Y, X) - math.atan2(v, u)
-            R03 = (rot_z(t1) @ rot_x(j[1].alpha) @ rot_z(t2) @ rot_z(t3))[:3, :3]
-            M = rot_x(-j[3].alpha)[:3, :3] @ R03.T @ G[:3, :3]
-            wrists, wsing = wrist_angles(M, j[4].alpha, j[5].alpha, hint[3] + off[3])
-            singular = singular or wsing
-            for t4, t5, t6 in wrists:
-                branches.append(np.array([t1, t2, t3, t4, t5, t6]) - off)
-    reason = reasons[0] if reasons else None
+    c1, s1 = np.cos(t1), np.sin(t1)
+    X = c1 * Px[:, None] + s1 * Py[:, None] - a1
+    Y = np.broadcast_to(((Pz - d1) / sa1)[:, None], X.shape)
+    K = (X * X + Y * Y - a2 * a2 - rho * rho) / (2 * a2 * rho)
+    K = np.where(np.abs(K) > 1 + 1e-12, np.nan, np.clip(K, -1.0, 1.0))
+    elbow = np.array([1.0, -1.0])
+    t3 = -psi + elbow * np.arccos(K)[..., None]  # (B, 2, 2): shoulder x elbow
+    u = a2 + np.cos(t3) * w3x - np.sin(t3) * w3y
+    v = np.sin(t3) * w3x + np.cos(t3) * w3y
+    t2 = np.arctan2(Y, X)[..., None] - np.arctan2(v, u)
+    t1b = np.broadcast_to(t1[..., None], t2.shape)
+
+    R03 = rz(t1b) @ rx(j[1].alpha) @ rz(t2 + t3)
+    M = rx(-j[3].alpha) @ np.swapaxes(R03, -1, -2) @ G[:, None, None, :3, :3]
+    t4, t5, t6, wsing = wrist_angles(
+        M.reshape(-1, 3, 3), j[4].alpha, j[5].alpha, np.full(4 * B, hint[3] + off[3])
+    )
+    arm = np.stack([t1b, t2, t3], axis=-1).reshape(-1, 1, 3)  # (4B, 1, 3)
+    branches = np.concatenate(
+        [np.broadcast_to(arm, (4 * B, 2, 3)), np.stack([t4, t5, t6], axis=-1)], axis=-1
+    ).reshape(-1, 6) - off
+    owner = np.repeat(np.arange(B), 8)
+    singular = on_axis | wsing.reshape(B, 4).any(axis=1)
+
+    reasons: list[str | None] = [None] * B
+    for b in np.flatnonzero(too_close):
+        reasons[b] = (
+            f"the wrist centre is {R_xy[b]:.3f} mm from the axis of joint 1, closer than the "
+            f"shoulder offset {abs(e):.3f} mm"
+        )
+    for b in np.flatnonzero(~too_close & np.all(np.isnan(K), axis=1)):
+        dist = float(np.hypot(X[b, 0], Y[b, 0]))
+        reasons[b] = (
+            f"the wrist centre is {dist:.1f} mm from the shoulder axis, outside the arm's "
+            f"reach [{abs(a2 - rho):.1f}, {a2 + rho:.1f}] mm"
+        )
     return finish_analytic(
-        model, T_target, np.array(branches).reshape(-1, 6), METHOD, q0,
-        unreachable_reason=reason, singular=singular,
+        model, T_target, branches, owner, METHOD, q0, reasons=reasons, singular=singular
     )

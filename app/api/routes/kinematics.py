@@ -47,8 +47,8 @@ def joint_rows(model: RobotModel, q: list, field: str = "q") -> tuple[np.ndarray
     return np.asarray(rows, dtype=float).reshape(len(rows), model.dof), single
 
 
-def _nan_to_none(x: float) -> float | None:
-    return None if math.isnan(x) else float(x)
+def _finite_or_none(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
 
 
 @router.post("/fk", response_model=FKResponse)
@@ -117,8 +117,8 @@ def inverse_kinematics(robot: RobotDep, body: IKRequest) -> JSONResponse:
             "status": r.status.value,
             "q": None if r.q is None else r.q.tolist(),
             "solutions": r.solutions.tolist(),
-            "position_error": _nan_to_none(r.position_error),
-            "rotation_error": _nan_to_none(r.rotation_error),
+            "position_error": _finite_or_none(r.position_error),
+            "rotation_error": _finite_or_none(r.rotation_error),
             "within_limits": bool(r.within_limits),
             "singular": bool(r.singular),
             "method": r.method,
@@ -137,7 +137,10 @@ def workspace(robot: RobotDep, body: WorkspaceRequest) -> JSONResponse:
             ["samples"], f"at most {MAX_SAMPLES} samples per call, got {body.samples}; "
             "submit a 'workspace' job for more"
         )
-    ws = sample_workspace(robot, body.samples, seed=body.seed, voxel=body.voxel)
+    try:
+        ws = sample_workspace(robot, body.samples, seed=body.seed, voxel=body.voxel)
+    except ValueError as exc:
+        raise invalid(["voxel"], str(exc)) from None
     k = min(body.return_points, ws.samples)
     idx = np.random.default_rng(body.seed).choice(ws.samples, size=k, replace=False)
     out = {

@@ -1,0 +1,15 @@
+"""Fixtures of the API tests: a fresh application per test, no viewer, data in a temp dir."""
+
+from __future__ import annotations
+
+import pytest
+from fastapi.testclient import TestClient
+
+from app.config import Settings
+from app.main import create_app
+
+
+@pytest.fixture
+def client(tmp_path) -> TestClient:
+    """A test client of a new app without the 3D viewer, storing its data under tmp_path."""
+    return TestClient(create_app(Settings(no_viewer=True, data_dir=tmp_path)))
