@@ -9,7 +9,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from . import __version__
-from .api.routes import health, kinematics, robots, viewer
+from .api.routes import health, kinematics, robots, trajectories, viewer
 from .config import Settings
 from .registry import RobotRegistry
 
@@ -56,6 +56,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.include_router(health.router)
     api.include_router(robots.router)
     api.include_router(kinematics.router)
+    api.include_router(trajectories.router)
     api.include_router(viewer.router)
 
     @api.exception_handler(RequestValidationError)

@@ -1,0 +1,202 @@
+"""Joint trajectories: plan, sample, check, fit to limits, plot; Cartesian lines and ellipses."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from fastapi import APIRouter, Response
+from fastapi.responses import JSONResponse
+
+from kinematics.fk import fk
+from kinematics.model import RobotModel
+from planning import Limits, Trajectory, plan_trajectory
+from planning.cartesian import ellipse_points, follow_path, line_points
+from planning.time_scaling import fit_to_limits
+
+from ...plots import trajectory_png
+from ..deps import RegistryDep
+from ..errors import invalid, not_found
+from ..trajectory_schemas import (
+    MAX_TRAJECTORY_SAMPLES,
+    CartesianRequest,
+    PlotRequest,
+    TrajectoryRequest,
+)
+
+router = APIRouter(prefix="/trajectories", tags=["trajectories"])
+
+
+def _field_of(message: str) -> str:
+    """Library ValueErrors start with the field name ('durations: ...')."""
+    head = message.split(":", 1)[0]
+    return head if head.isidentifier() else "waypoints"
+
+
+def _robot(registry, robot_id: str | None) -> RobotModel | None:
+    if robot_id is None:
+        return None
+    try:
+        return registry.get(robot_id)
+    except KeyError:
+        raise not_found("robot", robot_id) from None
+
+
+def _per_joint(value, dof: int, field: str) -> np.ndarray | None:
+    if value is None:
+        return None
+    arr = np.broadcast_to(np.asarray(value, dtype=float), (dof,)) if np.ndim(value) == 0 \
+        else np.asarray(value, dtype=float)
+    if arr.shape != (dof,):
+        raise invalid(["limits", field], f"expected one value or {dof} values, got {arr.size}")
+    if np.any(arr <= 0):
+        raise invalid(["limits", field], "limits must be positive")
+    return arr
+
+
+def _limits(body: TrajectoryRequest, robot: RobotModel | None, dof: int) -> Limits:
+    lim = body.limits
+    velocity = _per_joint(lim.velocity if lim else None, dof, "velocity")
+    if velocity is None and robot is not None and np.any(np.isfinite(robot.velocity_limits)):
+        velocity = np.asarray(robot.velocity_limits)
+    return Limits(
+        lower=None if robot is None else np.asarray(robot.lower),
+        upper=None if robot is None else np.asarray(robot.upper),
+        velocity=velocity,
+        acceleration=_per_joint(lim.acceleration if lim else None, dof, "acceleration"),
+        jerk=_per_joint(lim.jerk if lim else None, dof, "jerk"),
+    )
+
+
+def _check_rows(rows: list[list[float]], dof: int, field: str) -> None:
+    for k, row in enumerate(rows):
+        if len(row) != dof:
+            raise invalid([field, k], f"expected {dof} joint values, got {len(row)}")
+
+
+def _plan(body: TrajectoryRequest, registry) -> tuple[Trajectory, Limits, RobotModel | None]:
+    robot = _robot(registry, body.robot)
+    if len(body.waypoints) < 2:
+        raise invalid(["waypoints"], "need at least 2 waypoints")
+    dof = robot.dof if robot is not None else len(body.waypoints[0])
+    if dof == 0:
+        raise invalid(["waypoints", 0], "a waypoint needs at least one joint value")
+    _check_rows(body.waypoints, dof, "waypoints")
+    for name in ("velocities", "accelerations"):
+        rows = getattr(body, name)
+        if rows is not None:
+            if len(rows) != len(body.waypoints):
+                raise invalid([name], f"need one row per waypoint ({len(body.waypoints)})")
+            _check_rows(rows, dof, name)
+    if len(body.durations) != len(body.waypoints) - 1:
+        raise invalid(["durations"], f"need {len(body.waypoints) - 1} durations (one per "
+                      f"segment), got {len(body.durations)}")
+    if any(d <= 0 for d in body.durations):
+        raise invalid(["durations"], "every duration must be positive")
+    limits = _limits(body, robot, dof)
+    try:
+        traj = plan_trajectory(body.method, body.waypoints, body.durations,
+                               body.velocities, body.accelerations)
+        if body.time_scaling:
+            rests = body.velocities is None and body.accelerations is None
+            traj = fit_to_limits(traj, limits, per_segment=traj.method == "quintic" and rests)
+    except ValueError as exc:
+        raise invalid([_field_of(str(exc))], str(exc)) from None
+    n = math.floor(traj.duration / body.dt + 1e-9) + 2
+    if n > MAX_TRAJECTORY_SAMPLES:
+        raise invalid(["dt"], f"dt = {body.dt} s over {traj.duration:.6g} s gives about {n} "
+                      f"samples; at most {MAX_TRAJECTORY_SAMPLES}: use a larger dt")
+    return traj, limits, robot
+
+
+def _report(traj: Trajectory, limits: Limits, robot: RobotModel | None, dt: float) -> dict:
+    samples = traj.sample(dt)
+    names = [j.name for j in robot.joints] if robot else [f"j{i + 1}" for i in range(traj.dof)]
+    violations = [
+        {"joint": v.joint, "name": names[v.joint], "quantity": v.quantity, "value": v.value,
+         "limit": v.limit, "t": v.t}
+        for v in traj.violations(limits)
+    ]
+    return {
+        "method": traj.method,
+        "durations": np.diff(traj.breaks[traj.waypoint_index]).tolist(),
+        "duration": traj.duration,
+        "t": samples.t.tolist(),
+        "q": samples.q.tolist(),
+        "qd": samples.qd.tolist(),
+        "qdd": samples.qdd.tolist(),
+        "qddd": samples.qddd.tolist(),
+        "continuity": traj.continuity(),
+        "peaks": {name: traj.peaks(m)[0].tolist()
+                  for m, name in enumerate(("velocity", "acceleration", "jerk"), start=1)},
+        "limits": {"ok": not violations, "violations": violations},
+    }
+
+
+@router.post("")
+def plan(body: TrajectoryRequest, registry: RegistryDep) -> JSONResponse:
+    """Plan a joint trajectory; sampled q, q̇, q̈, jerk with continuity and limit reports."""
+    traj, limits, robot = _plan(body, registry)
+    return JSONResponse(_report(traj, limits, robot, body.dt))
+
+
+@router.post("/plot", response_class=Response,
+             responses={200: {"content": {"image/png": {}}}})
+def plot(body: PlotRequest, registry: RegistryDep) -> Response:
+    """The same trajectory as a PNG: position, velocity, acceleration and jerk panels."""
+    traj, _, robot = _plan(body, registry)
+    samples = traj.sample(body.dt)
+    if robot is not None:
+        names = [j.name for j in robot.joints]
+        units = ["rad" if j.revolute else "mm" for j in robot.joints]
+    else:
+        names = [f"j{i + 1}" for i in range(traj.dof)]
+        units = ["rad"] * traj.dof
+    png = trajectory_png(samples, names, units, body.title or f"{traj.method} trajectory",
+                         traj.breaks[traj.waypoint_index])
+    return Response(png, media_type="image/png")
+
+
+@router.post("/cartesian")
+def cartesian(body: CartesianRequest, registry: RegistryDep) -> JSONResponse:
+    """A straight line or an ellipse for the tool, mapped through IK into a joint trajectory,
+    with how closely the tool follows the path."""
+    robot = _robot(registry, body.robot)
+    if body.q0 is not None and len(body.q0) != robot.dof:
+        raise invalid(["q0"], f"expected {robot.dof} joint values, got {len(body.q0)}")
+    q0 = np.asarray(body.q0 if body.q0 is not None else robot.mid_configuration(), dtype=float)
+    T0 = fk(robot, q0)
+    if body.rotation is not None:
+        R = np.asarray(body.rotation, dtype=float)
+        if R.shape != (3, 3) or np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or \
+                np.linalg.det(R) < 0:
+            raise invalid(["rotation"], "must be a 3x3 rotation matrix")
+    else:
+        R = T0[:3, :3]
+    path = body.path
+    try:
+        if path.kind == "line":
+            start = T0[:3, 3] if path.start is None else np.asarray(path.start)
+            pts = line_points(start, path.end, body.points)
+        else:
+            pts = ellipse_points(path.center, path.radii, body.points, normal=path.normal,
+                                 major=path.major)
+    except ValueError as exc:
+        raise invalid(["path", _field_of(str(exc))], str(exc)) from None
+    try:
+        result = follow_path(robot, pts, R, body.duration, q0)
+    except ValueError as exc:
+        raise invalid(["path"], f"the path cannot be followed: {exc}") from None
+    n = math.floor(body.duration / body.dt + 1e-9) + 2
+    if n > MAX_TRAJECTORY_SAMPLES:
+        raise invalid(["dt"], f"at most {MAX_TRAJECTORY_SAMPLES} samples: use a larger dt")
+    out = _report(result.trajectory, Limits(lower=np.asarray(robot.lower),
+                                            upper=np.asarray(robot.upper)), robot, body.dt)
+    out["points"] = result.points.tolist()
+    out["waypoints_q"] = result.q_waypoints.tolist()
+    out["tracking"] = {
+        "max_deviation": result.max_deviation,
+        "mean_deviation": result.mean_deviation,
+        "max_waypoint_error": float(result.waypoint_error.max()),
+    }
+    return JSONResponse(out)
