@@ -12,8 +12,9 @@ from . import __version__
 from .api.routes import health, kinematics, robots, trajectories, viewer
 from .config import Settings
 from .registry import RobotRegistry
+from .store import Store
 
-__all__ = ["create_app", "app"]
+__all__ = ["create_app", "app"]  # noqa: F822 (``app`` is built lazily by __getattr__)
 
 DESCRIPTION = """Kinematics and motion planning for heavy-duty hydraulic arms and industrial
 robots. Units: mm, rad, s. Poses are 4x4 homogeneous matrices as nested lists (row-major)."""
@@ -51,7 +52,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or Settings()
     api = FastAPI(title="kinoplan", version=__version__, description=DESCRIPTION)
     api.state.settings = settings
-    api.state.registry = RobotRegistry()
+    api.state.store = Store.in_data_dir(settings.data_dir)
+    api.state.registry = RobotRegistry(api.state.store)
     api.state.viewer = None
     api.include_router(health.router)
     api.include_router(robots.router)
@@ -68,4 +70,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     return api
 
 
-app = create_app()
+_default_app: FastAPI | None = None
+
+
+def __getattr__(name: str) -> FastAPI:
+    # ``app.main:app`` is built on first access, not at import: importing this module (tests,
+    # tools) must not create the default data directory.
+    global _default_app
+    if name == "app":
+        if _default_app is None:
+            _default_app = create_app()
+        return _default_app
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 
 from fastapi import HTTPException
 
-__all__ = ["invalid", "too_large", "not_found", "conflict", "unavailable"]
+__all__ = ["invalid", "too_large", "not_found", "forbidden", "conflict", "unavailable"]
 
 
 def _error(status: int, loc: Sequence[str | int], msg: str, kind: str) -> HTTPException:
@@ -29,6 +29,11 @@ def too_large(field: Sequence[str | int], msg: str) -> HTTPException:
 
 def not_found(what: str, ident: str) -> HTTPException:
     return _error(404, ["path", f"{what}_id"], f"unknown {what} '{ident}'", "not_found")
+
+
+def forbidden(what: str, ident: str, msg: str) -> HTTPException:
+    """403 for an existing resource the client may not change (e.g. a built-in robot)."""
+    return _error(403, ["path", f"{what}_id"], msg, "forbidden")
 
 
 def conflict(field: Sequence[str | int], msg: str) -> HTTPException:
