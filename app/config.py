@@ -24,3 +24,5 @@ class Settings(BaseSettings):
     workers: int = Field(default_factory=lambda: os.cpu_count() or 1, ge=1)
     jobs_backend: str = "local"
     api_key: str | None = None
+    max_queued_jobs: int = Field(1000, ge=1)
+    max_body_bytes: int = Field(64 * 1024 * 1024, ge=1024)

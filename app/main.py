@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import AsyncIterator, Sequence
+from contextlib import asynccontextmanager
 
-from fastapi import FastAPI, Request
+from fastapi import Depends, FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from . import __version__
-from .api.routes import health, kinematics, robots, trajectories, viewer
+from .api.deps import require_api_key
+from .api.routes import cylinders, health, jobs, kinematics, robots, trajectories, viewer
 from .config import Settings
+from .jobs.manager import JobManager
+from .limits import BodySizeLimit
 from .registry import RobotRegistry
 from .store import Store
 
@@ -50,16 +54,35 @@ def simplify_errors(errors: Sequence[dict]) -> list[dict]:
 def create_app(settings: Settings | None = None) -> FastAPI:
     """A new application with its own settings, robot registry and (optional) viewer."""
     settings = settings or Settings()
-    api = FastAPI(title="kinoplan", version=__version__, description=DESCRIPTION)
+
+    @asynccontextmanager
+    async def lifespan(api: FastAPI) -> AsyncIterator[None]:
+        # The job backend (threads, worker processes, a cluster client) lives as long as the
+        # served application, not as long as the object: building an app starts nothing.
+        api.state.jobs.start()
+        try:
+            yield
+        finally:
+            api.state.jobs.stop()
+
+    api = FastAPI(title="kinoplan", version=__version__, description=DESCRIPTION,
+                  lifespan=lifespan)
     api.state.settings = settings
     api.state.store = Store.in_data_dir(settings.data_dir)
     api.state.registry = RobotRegistry(api.state.store)
+    api.state.jobs = JobManager(api.state.store, api.state.registry, settings.jobs_backend,
+                                settings.workers, settings.max_queued_jobs)
     api.state.viewer = None
+    api.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
+    guarded = [Depends(require_api_key)]
     api.include_router(health.router)
     api.include_router(robots.router)
+    api.include_router(robots.write_router, dependencies=guarded)
     api.include_router(kinematics.router)
+    api.include_router(cylinders.router)
     api.include_router(trajectories.router)
-    api.include_router(viewer.router)
+    api.include_router(jobs.router)
+    api.include_router(viewer.router, dependencies=guarded)
 
     @api.exception_handler(RequestValidationError)
     async def _validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:

@@ -11,7 +11,7 @@ from .fk import fk
 from .model import RobotModel
 from .transforms import invert_pose
 
-__all__ = ["Workspace", "sample_workspace", "DEFAULT_SAMPLES", "MAX_SAMPLES"]
+__all__ = ["Workspace", "sample_workspace", "workspace_report", "DEFAULT_SAMPLES", "MAX_SAMPLES"]
 
 DEFAULT_SAMPLES = 30_000
 MAX_SAMPLES = 2_000_000
@@ -56,11 +56,13 @@ def sample_workspace(
     seed: int = 0,
     voxel: float | None = None,
     progress: Callable[[float], None] | None = None,
+    max_samples: float = MAX_SAMPLES,
 ) -> Workspace:
     """Sample ``samples`` configurations uniformly within the joint limits (seeded) and
-    collect the tool positions, as the papers' Monte Carlo method does."""
-    if not 1 <= samples <= MAX_SAMPLES:
-        raise ValueError(f"samples must be between 1 and {MAX_SAMPLES}, got {samples}")
+    collect the tool positions, as the papers' Monte Carlo method does. ``progress(f)`` is
+    called after each chunk; ``max_samples`` caps ``samples`` (jobs allow more than calls)."""
+    if not 1 <= samples <= max_samples:
+        raise ValueError(f"samples must be between 1 and {max_samples}, got {samples}")
     if voxel is not None and not voxel > 0:
         raise ValueError(f"voxel must be positive, got {voxel}")
     rng = np.random.default_rng(seed)
@@ -102,3 +104,32 @@ def sample_workspace(
         vertical=(float(local[:, 2].min()), float(local[:, 2].max())),
         voxel=float(voxel), volume=volume, projections=projections, edges=edges,
     )
+
+
+def workspace_report(ws: Workspace, return_points: int, projections: bool) -> dict:
+    """The workspace as plain JSON-ready data: extents, ranges, volume, up to
+    ``return_points`` points (a seeded subsample, in sampling order) and, optionally, the
+    projection images with their cell edges."""
+    k = min(return_points, ws.samples)
+    idx = np.sort(np.random.default_rng(ws.seed).choice(ws.samples, size=k, replace=False))
+    out = {
+        "samples": ws.samples,
+        "seed": ws.seed,
+        "min": ws.min.tolist(),
+        "max": ws.max.tolist(),
+        "radial": list(ws.radial),
+        "vertical": list(ws.vertical),
+        "voxel": ws.voxel,
+        "volume": ws.volume,
+        "points": ws.points[idx].tolist(),
+    }
+    if projections:
+        out["projections"] = {
+            name: {
+                "counts": H.tolist(),
+                "first_edges": ws.edges[name][0].tolist(),
+                "second_edges": ws.edges[name][1].tolist(),
+            }
+            for name, H in ws.projections.items()
+        }
+    return out

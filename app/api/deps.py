@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hmac
 from typing import Annotated
 
 from fastapi import Depends, Path, Request
@@ -10,9 +11,9 @@ from kinematics.model import RobotModel
 
 from ..config import Settings
 from ..registry import RobotRegistry
-from .errors import not_found
+from .errors import http_error, not_found
 
-__all__ = ["SettingsDep", "RegistryDep", "RobotDep"]
+__all__ = ["SettingsDep", "RegistryDep", "RobotDep", "require_api_key"]
 
 
 def get_settings(request: Request) -> Settings:
@@ -38,3 +39,18 @@ def get_robot(
 
 
 RobotDep = Annotated[RobotModel, Depends(get_robot)]
+
+
+def require_api_key(request: Request) -> None:
+    """With ``KINOPLAN_API_KEY`` set, state-changing requests need ``Authorization: Bearer
+    <key>`` (401 otherwise). Without a key the service is open (it binds to 127.0.0.1)."""
+    key = request.app.state.settings.api_key
+    if not key:
+        return
+    header = request.headers.get("authorization", "")
+    scheme, _, token = header.partition(" ")
+    if scheme.lower() != "bearer" or not hmac.compare_digest(token.strip().encode(),
+                                                             key.encode()):
+        raise http_error(401, ["header", "authorization"],
+                         "this request changes state: send 'Authorization: Bearer <api key>'",
+                         "unauthorized")

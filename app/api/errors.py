@@ -10,11 +10,16 @@ from collections.abc import Sequence
 
 from fastapi import HTTPException
 
-__all__ = ["invalid", "too_large", "not_found", "forbidden", "conflict", "unavailable"]
+__all__ = [
+    "http_error","invalid", "too_large", "not_found", "forbidden", "conflict", "unavailable"]
 
 
-def _error(status: int, loc: Sequence[str | int], msg: str, kind: str) -> HTTPException:
+def http_error(status: int, loc: Sequence[str | int], msg: str, kind: str) -> HTTPException:
+    """Any 4xx/5xx in the service's shape; ``loc`` is the full location."""
     return HTTPException(status, detail=[{"loc": list(loc), "msg": msg, "type": kind}])
+
+
+_error = http_error
 
 
 def invalid(field: Sequence[str | int], msg: str) -> HTTPException:

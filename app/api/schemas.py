@@ -166,3 +166,17 @@ class ViewerShowRequest(Body):
     robot: str | None = Field(None, description="Robot id to show")
     q: list[float] | None = Field(None, description="Configuration; default mid-limits")
     job: str | None = Field(None, description="A finished job whose result to show")
+
+
+class JobRecordOut(BaseModel):
+    id: str
+    kind: str
+    params: dict
+    status: Literal["queued", "running", "succeeded", "failed", "cancelled"]
+    progress: float = Field(description="0..1")
+    message: str
+    created: str
+    started: str | None
+    finished: str | None
+    error: str | None
+    attempts: int = Field(description="Times the job was started (restarts re-run it)")

@@ -13,7 +13,7 @@ from kinematics.fk import fk, fk_frames
 from kinematics.ik import solve_ik
 from kinematics.jacobian import dexterity, jacobian_and_pose
 from kinematics.model import RobotModel
-from kinematics.workspace import MAX_SAMPLES, sample_workspace
+from kinematics.workspace import MAX_SAMPLES, sample_workspace, workspace_report
 
 from ..deps import RobotDep
 from ..errors import conflict, invalid, too_large
@@ -141,26 +141,5 @@ def workspace(robot: RobotDep, body: WorkspaceRequest) -> JSONResponse:
         ws = sample_workspace(robot, body.samples, seed=body.seed, voxel=body.voxel)
     except ValueError as exc:
         raise invalid(["voxel"], str(exc)) from None
-    k = min(body.return_points, ws.samples)
-    idx = np.random.default_rng(body.seed).choice(ws.samples, size=k, replace=False)
-    out = {
-        "samples": ws.samples,
-        "seed": ws.seed,
-        "min": ws.min.tolist(),
-        "max": ws.max.tolist(),
-        "radial": list(ws.radial),
-        "vertical": list(ws.vertical),
-        "voxel": ws.voxel,
-        "volume": ws.volume,
-        "points": ws.points[np.sort(idx)].tolist(),
-    }
-    if body.projections:
-        out["projections"] = {
-            name: {
-                "counts": H.tolist(),
-                "first_edges": ws.edges[name][0].tolist(),
-                "second_edges": ws.edges[name][1].tolist(),
-            }
-            for name, H in ws.projections.items()
-        }
+    out = workspace_report(ws, body.return_points, body.projections)
     return JSONResponse(out)

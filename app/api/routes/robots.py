@@ -9,6 +9,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Path, Request, Response
 
+from kinematics.cylinders import CylinderError, CylinderSet
 from kinematics.ik import available_methods
 from kinematics.model import MAX_DOF, ModelError, RobotModel
 from kinematics.urdf import to_urdf
@@ -19,6 +20,8 @@ from ..errors import conflict, forbidden, invalid, not_found, too_large
 from ..schemas import JointSummary, RobotSummary
 
 router = APIRouter(prefix="/robots", tags=["robots"])
+#: The routes that change state (guarded by the API key when one is set).
+write_router = APIRouter(prefix="/robots", tags=["robots"])
 
 #: Largest robot model body accepted by POST /robots (413 above): a 32-joint model with
 #: generous extra fields is a few KiB.
@@ -138,7 +141,7 @@ def list_robots(registry: RegistryDep) -> list[RobotSummary]:
     ]
 
 
-@router.post(
+@write_router.post(
     "", status_code=201, openapi_extra=_MODEL_BODY_DOC,
     responses={409: {"description": "Id taken or a built-in's"},
                413: {"description": "Body too large"}, 422: {"description": "Invalid model"}},
@@ -150,7 +153,9 @@ def create_robot(registry: RegistryDep, data: ModelBody) -> dict[str, Any]:
     _check_values(data)
     try:
         model = RobotModel.from_dict(data)
-    except ModelError as exc:
+        if "cylinders" in model.extras:
+            CylinderSet.from_model(model)  # bad cylinder data is the model's fault: 422 now
+    except (ModelError, CylinderError) as exc:
         raise invalid(field_loc(exc.field), exc.message) from None
     try:
         registry.add(model)
@@ -165,7 +170,7 @@ def get_robot_model(robot: RobotDep) -> dict[str, Any]:
     return robot.to_dict()
 
 
-@router.delete(
+@write_router.delete(
     "/{robot_id}", status_code=204, response_class=Response,
     responses={403: {"description": "Built-in robot"}, 404: {"description": "Unknown robot"}},
 )

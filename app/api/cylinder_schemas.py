@@ -1,0 +1,83 @@
+"""Request and response bodies of the cylinder endpoints (units: mm, rad, s)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+from .schemas import Body, Matrix
+
+__all__ = [
+    "CylindersRequest",
+    "CylinderState",
+    "CylindersResponse",
+    "CylindersInverseRequest",
+    "CylindersInverseResponse",
+    "PoseToCylindersRequest",
+    "IKSummary",
+    "PoseToCylindersResponse",
+]
+
+
+class CylindersRequest(Body):
+    q: list[float] = Field(description="One configuration (dof values), rad or mm per joint")
+    qd: list[float] | None = Field(
+        None, description="Joint speeds (dof values, rad/s or mm/s); adds each cylinder's speed"
+    )
+
+
+class CylinderState(BaseModel):
+    name: str
+    joint: str = Field(description="Name of the joint the cylinder drives")
+    length: float = Field(description="Pin-to-pin length, mm")
+    stroke: float = Field(description="length - min_length, mm")
+    min_length: float = Field(description="Retracted length, mm")
+    max_length: float = Field(description="Extended length, mm")
+    within_limits: bool = Field(description="min_length <= length <= max_length")
+    speed: float | None = Field(
+        None, description="mm/s, positive = extending; only when joint speeds were given"
+    )
+
+
+class CylindersResponse(BaseModel):
+    cylinders: list[CylinderState]
+    joints_within_limits: bool
+
+
+class CylindersInverseRequest(Body):
+    lengths: dict[str, float] = Field(
+        min_length=1, description="Cylinder lengths (mm) by cylinder name"
+    )
+    q: list[float] | None = Field(
+        None, description="Values (dof) for the joints without a given cylinder; default 0"
+    )
+
+
+class CylindersInverseResponse(BaseModel):
+    q: list[float]
+    joints_within_limits: bool
+    cylinders: list[CylinderState] = Field(description="Every cylinder at the answer q")
+
+
+class PoseToCylindersRequest(Body):
+    pose: Matrix = Field(description="Target tool pose, 4x4, base frame, mm")
+    q0: list[float] | None = Field(
+        None, description="Initial guess / preferred configuration (dof values)"
+    )
+
+
+class IKSummary(BaseModel):
+    status: Literal["ok", "unreachable", "out_of_limits", "not_converged"]
+    message: str
+    method: str
+    position_error: float | None = Field(description="mm; null when nothing was computed")
+    rotation_error: float | None = Field(description="rad; null when nothing was computed")
+
+
+class PoseToCylindersResponse(BaseModel):
+    success: bool
+    q: list[float] | None = Field(description="Joint solution; null when the pose is not reached")
+    cylinders: list[CylinderState] | None
+    ik: IKSummary
+    message: str

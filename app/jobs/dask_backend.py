@@ -1,0 +1,181 @@
+"""Scale-out: run the same job functions on a Dask distributed cluster.
+
+``--jobs-backend dask://HOST:PORT`` connects to a running scheduler. The service still
+keeps every job in its own store (queue order, records, results) and hands the cluster as
+many jobs at a time as it has worker threads, so the cluster's size sets the throughput.
+A job reports progress through a Dask
+``Variable`` the supervisor polls, and checks a cancel ``Event`` whenever it reports
+progress, so a running job stops within one progress step of a cancel (our kinds report at
+least every second); the future is cancelled as well.
+
+Dask is an optional extra (``pip install ".[dask]"``); the embedded default never imports it.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+
+from ..store import Store
+from .kinds import JobCancelled, load_kind_modules, run_kind
+
+__all__ = ["DaskBackend", "run_on_cluster"]
+
+log = logging.getLogger(__name__)
+
+POLL_S = 0.1
+
+
+def _names(job_id: str) -> tuple[str, str]:
+    return f"kinoplan-progress-{job_id}", f"kinoplan-cancel-{job_id}"
+
+
+def run_on_cluster(job_id: str, kind: str, payload: dict) -> str:
+    """What a Dask worker runs: one job, with progress and cooperative cancel."""
+    from distributed import Event, Variable
+
+    progress_name, cancel_name = _names(job_id)
+    progress_var = Variable(progress_name)
+    cancel = Event(cancel_name)
+    last = [0.0]
+
+    def progress(fraction: float, message: str) -> None:
+        now = time.monotonic()
+        if now - last[0] < 0.2 and fraction < 1.0:
+            return
+        last[0] = now
+        if cancel.is_set():
+            raise JobCancelled()
+        progress_var.set([min(max(float(fraction), 0.0), 1.0), str(message)[:200]])
+
+    load_kind_modules()
+    return json.dumps(run_kind(kind, payload, progress), allow_nan=False)
+
+
+class DaskBackend:
+    """Hands queued jobs of ``store`` to the Dask scheduler at ``address``."""
+
+    name = "dask"
+
+    def __init__(self, store: Store, address: str, workers: int) -> None:
+        try:
+            from distributed import Client
+        except ImportError as exc:  # pragma: no cover - depends on the install
+            raise RuntimeError(
+                "the dask backend needs the 'dask' extra: pip install '.[dask]'"
+            ) from exc
+        self.store = store
+        self.address = address
+        self.client = Client(address, timeout="10s", set_as_default=False)
+        self.workers = max(1, int(workers))
+        self._futures: dict[str, object] = {}
+        self._cancel: set[str] = set()
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def capacity(self) -> int:
+        """Jobs to keep in flight: the cluster's worker threads (at least ``workers``)."""
+        try:
+            threads = sum(self.client.nthreads().values())
+        except Exception:  # noqa: BLE001 - scheduler briefly unreachable
+            threads = 0
+        return max(self.workers, threads)
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._loop, name="kinoplan-dask", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout=10)
+        for job_id, fut in list(self._futures.items()):
+            self._signal_cancel(job_id)
+            fut.cancel()
+        self.client.close()
+
+    def notify(self) -> None:
+        self._wake.set()
+
+    def cancel(self, job_id: str) -> None:
+        with self._lock:
+            self._cancel.add(job_id)
+        self._wake.set()
+
+    def alive(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def _signal_cancel(self, job_id: str) -> None:
+        from distributed import Event
+
+        Event(_names(job_id)[1], client=self.client).set()
+
+    def _loop(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self._handle_cancels()
+                self._start_jobs()
+                self._collect()
+            except Exception:  # noqa: BLE001 - keep supervising whatever happens
+                log.exception("dask job supervisor pass failed")
+            self._wake.wait(POLL_S)
+            self._wake.clear()
+
+    def _start_jobs(self) -> None:
+        cap = self.capacity()
+        while len(self._futures) < cap and not self._stop.is_set():
+            job = self.store.claim_next_job()
+            if job is None:
+                return
+            payload = self.store.job_payload(job.id)
+            fut = self.client.submit(run_on_cluster, job.id, job.kind, payload,
+                                     key=f"kinoplan-job-{job.id}-{job.attempts}", pure=False)
+            self._futures[job.id] = fut
+
+    def _collect(self) -> None:
+        from distributed import Variable
+
+        for job_id, fut in list(self._futures.items()):
+            status = fut.status
+            if status == "pending":
+                got = None
+                try:
+                    got = Variable(_names(job_id)[0], client=self.client).get(timeout=0.01)
+                except Exception:  # noqa: BLE001 - no progress reported yet
+                    pass
+                if got:
+                    self.store.set_progress(job_id, float(got[0]), str(got[1]))
+                continue
+            self._futures.pop(job_id)
+            with self._lock:
+                cancelled = job_id in self._cancel
+                self._cancel.discard(job_id)
+            if status == "finished":
+                self.store.finish_job(job_id, "succeeded", result_json=fut.result(),
+                                      message="done")
+            elif cancelled or status == "cancelled":
+                self.store.finish_job(job_id, "cancelled", message="cancelled")
+            else:
+                exc = fut.exception()
+                if isinstance(exc, JobCancelled):
+                    self.store.finish_job(job_id, "cancelled", message="cancelled")
+                else:
+                    self.store.finish_job(job_id, "failed", message="failed",
+                                          error=f"{type(exc).__name__}: {exc}")
+            for name in _names(job_id):
+                try:
+                    Variable(name, client=self.client).delete()
+                except Exception:  # noqa: BLE001 - Events have no delete; best effort
+                    pass
+
+    def _handle_cancels(self) -> None:
+        with self._lock:
+            wanted = [j for j in self._cancel if j in self._futures]
+        for job_id in wanted:
+            self._signal_cancel(job_id)
+            self._futures[job_id].cancel()

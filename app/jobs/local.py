@@ -1,0 +1,221 @@
+"""The embedded job backend: each running job in a worker process of its own.
+
+A supervisor thread in the service starts up to ``workers`` processes (forked from a
+forkserver that has numpy, scipy and the job kinds already imported, so a start costs
+milliseconds), listens on a pipe per job for progress and the result, and writes both to the
+store. One process per job is what keeps a crash contained: a job that segfaults, calls
+``os._exit`` or is killed for memory fails alone, and the next job gets a fresh process.
+Cancel terminates the process (SIGTERM, then SIGKILL after a grace period), well within 2 s.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import multiprocessing
+import signal
+import threading
+import time
+from dataclasses import dataclass
+from multiprocessing.connection import Connection, wait
+
+from ..store import Store
+from .kinds import JobCancelled, load_kind_modules, run_kind
+
+__all__ = ["LocalBackend"]
+
+log = logging.getLogger(__name__)
+
+#: Seconds between supervisor passes when nothing happens.
+POLL_S = 0.05
+#: Seconds a cancelled job gets to exit after SIGTERM before SIGKILL.
+TERMINATE_GRACE_S = 0.5
+#: Least seconds between two progress writes of one job to the store.
+PROGRESS_WRITE_S = 0.2
+
+
+def _child_main(conn: Connection, kind: str, payload: dict) -> None:
+    """Body of a worker process: run one job, send progress and the outcome down ``conn``."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C in a terminal is the service's
+    last = [0.0]
+
+    def progress(fraction: float, message: str) -> None:
+        now = time.monotonic()
+        if now - last[0] >= 0.05 or fraction >= 1.0:
+            last[0] = now
+            conn.send(("progress", min(max(float(fraction), 0.0), 1.0), str(message)[:200]))
+
+    try:
+        load_kind_modules()
+        result = run_kind(kind, payload, progress)
+        conn.send(("result", json.dumps(result, allow_nan=False)))
+    except JobCancelled:
+        conn.send(("cancelled", ""))
+    except BaseException as exc:  # noqa: BLE001 - everything a job raises is its failure
+        conn.send(("error", f"{type(exc).__name__}: {exc}"))
+    finally:
+        conn.close()
+
+
+@dataclass
+class _Running:
+    process: multiprocessing.process.BaseProcess
+    conn: Connection
+    last_write: float = 0.0
+    outcome: tuple | None = None
+    pending_progress: tuple[float, str] | None = None
+    cancel_at: float | None = None
+
+
+class LocalBackend:
+    """Runs queued jobs of ``store`` in up to ``workers`` processes at a time."""
+
+    name = "local"
+
+    def __init__(self, store: Store, workers: int) -> None:
+        self.store = store
+        self.workers = max(1, int(workers))
+        self._ctx = multiprocessing.get_context("forkserver")
+        self._ctx.set_forkserver_preload(["numpy", "scipy", "app.jobs.kinds"])
+        self._running: dict[str, _Running] = {}
+        self._cancel: set[str] = set()
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    # ---- control (any thread) ---------------------------------------------------------
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._loop, name="kinoplan-jobs", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop the supervisor; jobs still running are stopped and left 'running' in the
+        store, so the next start queues them again."""
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout=10)
+        for job_id, run in list(self._running.items()):
+            self._terminate(run)
+            run.conn.close()
+            self._running.pop(job_id, None)
+
+    def notify(self) -> None:
+        """A job was queued: look at the queue now rather than at the next poll."""
+        self._wake.set()
+
+    def cancel(self, job_id: str) -> None:
+        """Stop a running job (the store already marks queued ones cancelled)."""
+        with self._lock:
+            self._cancel.add(job_id)
+        self._wake.set()
+
+    def alive(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    # ---- the supervisor loop ------------------------------------------------------------
+    def _loop(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self._handle_cancels()
+                self._start_jobs()
+                self._collect()
+            except Exception:  # the supervisor must survive anything: log, go on
+                log.exception("job supervisor pass failed")
+                time.sleep(POLL_S)
+
+    def _start_jobs(self) -> None:
+        while len(self._running) < self.workers and not self._stop.is_set():
+            job = self.store.claim_next_job()
+            if job is None:
+                return
+            payload = self.store.job_payload(job.id)
+            parent, child = self._ctx.Pipe(duplex=False)
+            proc = self._ctx.Process(target=_child_main, args=(child, job.kind, payload),
+                                     name=f"kinoplan-job-{job.id}", daemon=True)
+            proc.start()
+            child.close()
+            self._running[job.id] = _Running(proc, parent)
+            log.info("job %s (%s) started in process %s", job.id, job.kind, proc.pid)
+
+    def _collect(self) -> None:
+        conns = {run.conn: job_id for job_id, run in self._running.items()}
+        sentinels = {run.process.sentinel: job_id for job_id, run in self._running.items()}
+        self._wake.clear()
+        ready = wait(list(conns) + list(sentinels), timeout=POLL_S) if conns else []
+        if not conns:
+            self._wake.wait(POLL_S)
+        for obj in ready:
+            job_id = conns.get(obj)
+            if job_id is not None:
+                self._drain(job_id)
+        now = time.monotonic()
+        for job_id, run in list(self._running.items()):
+            if run.pending_progress and now - run.last_write >= PROGRESS_WRITE_S:
+                self.store.set_progress(job_id, *run.pending_progress)
+                run.pending_progress, run.last_write = None, now
+            if run.process.is_alive():
+                continue
+            self._drain(job_id)  # a result sent just before exit
+            run.process.join()
+            self._finish(job_id, run)
+
+    def _drain(self, job_id: str) -> None:
+        run = self._running.get(job_id)
+        if run is None:
+            return
+        try:
+            while run.conn.poll():
+                msg = run.conn.recv()
+                if msg[0] == "progress":
+                    run.pending_progress = (msg[1], msg[2])
+                else:
+                    run.outcome = msg
+        except (EOFError, OSError):
+            pass
+
+    def _finish(self, job_id: str, run: _Running) -> None:
+        self._running.pop(job_id, None)
+        run.conn.close()
+        with self._lock:
+            cancelled = job_id in self._cancel
+            self._cancel.discard(job_id)
+        kind, text = run.outcome if run.outcome else (None, None)
+        if cancelled or kind == "cancelled":
+            self.store.finish_job(job_id, "cancelled", message="cancelled")
+        elif kind == "result":
+            self.store.finish_job(job_id, "succeeded", result_json=text, message="done")
+        elif kind == "error":
+            self.store.finish_job(job_id, "failed", error=text, message="failed")
+        else:
+            code = run.process.exitcode
+            why = (f"killed by signal {-code}" if code is not None and code < 0
+                   else f"exit code {code}")
+            self.store.finish_job(
+                job_id, "failed", message="worker died",
+                error=f"the worker process died ({why}) before the job finished",
+            )
+        log.info("job %s ended (%s)", job_id, kind or "died")
+
+    def _handle_cancels(self) -> None:
+        with self._lock:
+            wanted = [j for j in self._cancel if j in self._running]
+            self._cancel.intersection_update(set(self._running) | set(wanted))
+        for job_id in wanted:
+            run = self._running[job_id]
+            if run.cancel_at is None:
+                run.cancel_at = time.monotonic()
+                run.process.terminate()
+            elif time.monotonic() - run.cancel_at > TERMINATE_GRACE_S:
+                run.process.kill()
+
+    @staticmethod
+    def _terminate(run: _Running) -> None:
+        if run.process.is_alive():
+            run.process.terminate()
+            run.process.join(TERMINATE_GRACE_S)
+            if run.process.is_alive():
+                run.process.kill()
+                run.process.join(1.0)

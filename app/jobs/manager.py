@@ -1,0 +1,139 @@
+"""The job manager: validates submissions, keeps records in the store, drives a backend."""
+
+from __future__ import annotations
+
+import logging
+import uuid
+from typing import Any
+
+from pydantic import ValidationError
+
+from ..registry import RobotRegistry
+from ..store import JobRecord, Store
+from .kinds import KINDS, get_kind
+
+__all__ = ["JobManager", "JobParamsError", "QueueFullError", "JobStateError",
+           "MAX_ATTEMPTS", "make_backend"]
+
+log = logging.getLogger(__name__)
+
+#: A job interrupted by this many service restarts is failed instead of run again.
+MAX_ATTEMPTS = 3
+
+
+class JobParamsError(ValueError):
+    """Invalid job submission; ``loc`` names the field (e.g. ``["params", "samples"]``)."""
+
+    def __init__(self, loc: list, message: str, status: int = 422):
+        super().__init__(message)
+        self.loc = loc
+        self.message = message
+        self.status = status
+
+
+class QueueFullError(RuntimeError):
+    """As many jobs are queued as the service accepts."""
+
+
+class JobStateError(RuntimeError):
+    """The job is not in a state that allows the request (e.g. its result is not ready)."""
+
+
+def make_backend(store: Store, jobs_backend: str, workers: int):
+    """The backend named by ``--jobs-backend``: 'local' or 'dask://HOST:PORT'."""
+    if jobs_backend == "local":
+        from .local import LocalBackend
+
+        return LocalBackend(store, workers)
+    if jobs_backend.startswith("dask://"):
+        from .dask_backend import DaskBackend
+
+        return DaskBackend(store, "tcp://" + jobs_backend.removeprefix("dask://"), workers)
+    raise ValueError(f"jobs_backend must be 'local' or 'dask://HOST:PORT', got {jobs_backend!r}")
+
+
+class JobManager:
+    """Jobs of one service. The backend is created and started by ``start`` (the service's
+    lifespan), so building an app for a test starts no processes."""
+
+    def __init__(self, store: Store, registry: RobotRegistry, jobs_backend: str, workers: int,
+                 max_queued: int) -> None:
+        self.store = store
+        self.registry = registry
+        self.jobs_backend = jobs_backend
+        self.workers = workers
+        self.max_queued = max_queued
+        self.backend = None
+
+    # ---- lifecycle ------------------------------------------------------------------------
+    def start(self) -> None:
+        requeued, failed = self.store.requeue_interrupted(MAX_ATTEMPTS)
+        if requeued or failed:
+            log.warning("after restart: %d interrupted job(s) queued again, %d failed",
+                        requeued, failed)
+        self.backend = make_backend(self.store, self.jobs_backend, self.workers)
+        self.backend.start()
+
+    def stop(self) -> None:
+        if self.backend is not None:
+            self.backend.stop()
+            self.backend = None
+
+    @property
+    def running(self) -> bool:
+        return self.backend is not None and self.backend.alive()
+
+    # ---- requests -------------------------------------------------------------------------
+    def submit(self, kind: str, params: dict[str, Any]) -> JobRecord:
+        """Validate and queue a job; raises JobParamsError or QueueFullError."""
+        if kind not in KINDS:
+            raise JobParamsError(["kind"], f"unknown job kind {kind!r}; known: "
+                                 f"{', '.join(sorted(KINDS))}")
+        spec = get_kind(kind)
+        if not isinstance(params, dict):
+            raise JobParamsError(["params"], "params must be a JSON object")
+        try:
+            clean = spec.params.model_validate(params).model_dump(mode="json")
+        except ValidationError as exc:
+            err = exc.errors()[0]
+            raise JobParamsError(["params", *err["loc"]], err["msg"]) from None
+        payload = dict(clean)
+        if spec.needs_robot:
+            try:
+                payload["_model"] = self.registry.get(clean["robot"]).to_dict()
+            except KeyError:
+                raise JobParamsError(["params", "robot"], f"unknown robot '{clean['robot']}'",
+                                     status=404) from None
+        job = self.store.add_job(uuid.uuid4().hex[:16], kind, clean, payload,
+                                 max_queued=self.max_queued)
+        if job is None:
+            raise QueueFullError(f"{self.max_queued} jobs are already queued; try again later")
+        if self.backend is not None:
+            self.backend.notify()
+        return job
+
+    def get(self, job_id: str) -> JobRecord:
+        return self.store.get_job(job_id)
+
+    def list(self, status: str | None = None) -> list[JobRecord]:
+        return self.store.list_jobs(status)
+
+    def result(self, job_id: str) -> str:
+        """The result JSON text; KeyError if unknown, JobStateError unless succeeded."""
+        job = self.store.get_job(job_id)
+        if job.status != "succeeded":
+            why = f": {job.error}" if job.error else ""
+            raise JobStateError(f"job {job_id} is {job.status}, no result{why}")
+        text = self.store.job_result(job_id)
+        assert text is not None
+        return text
+
+    def cancel(self, job_id: str) -> JobRecord:
+        """Cancel a queued job at once or stop a running one; JobStateError if it ended."""
+        job = self.store.get_job(job_id)
+        if job.status not in ("queued", "running"):
+            raise JobStateError(f"job {job_id} has already ended ({job.status})")
+        job = self.store.request_cancel(job_id)
+        if job.status == "running" and self.backend is not None:
+            self.backend.cancel(job_id)
+        return job

@@ -1,0 +1,74 @@
+"""The same job kinds on a Dask distributed cluster (a LocalCluster in this process)."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from fastapi.testclient import TestClient
+
+from app.config import Settings
+from app.main import create_app
+
+from .conftest import wait_for
+
+distributed = pytest.importorskip("distributed")
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None, host="127.0.0.1") as c:
+        yield c
+
+
+@pytest.fixture
+def dask_client(cluster, tmp_path):
+    address = cluster.scheduler_address.removeprefix("tcp://")
+    settings = Settings(no_viewer=True, data_dir=tmp_path, jobs_backend=f"dask://{address}")
+    with TestClient(create_app(settings)) as client:
+        yield client
+
+
+def submit(client, kind, **params):
+    r = client.post("/jobs", json={"kind": kind, "params": params})
+    assert r.status_code == 202, r.text
+    return r.json()["id"]
+
+
+def test_health_names_the_backend(dask_client):
+    assert dask_client.get("/health").json()["jobs_backend"].startswith("dask://")
+
+
+def test_progress_and_result(dask_client):
+    job_id = submit(dask_client, "sleep", seconds=2.0, steps=10)
+    seen = []
+    while (job := dask_client.get(f"/jobs/{job_id}").json())["status"] != "succeeded":
+        assert job["status"] in ("queued", "running"), job
+        seen.append(job["progress"])
+        time.sleep(0.1)
+    assert any(0 < p < 1 for p in seen)
+    assert dask_client.get(f"/jobs/{job_id}/result").json()["slept"] == 2.0
+
+
+def test_workspace_and_echo(dask_client):
+    ws = submit(dask_client, "workspace", robot="glt_palletizer", samples=20000,
+                return_points=10)
+    echo = submit(dask_client, "echo", value={"a": [1, 2]})
+    assert wait_for(dask_client, ws)["status"] == "succeeded"
+    assert wait_for(dask_client, echo)["status"] == "succeeded"
+    assert dask_client.get(f"/jobs/{echo}/result").json() == {"value": {"a": [1, 2]}}
+    assert len(dask_client.get(f"/jobs/{ws}/result").json()["points"]) == 10
+
+
+def test_failure_and_cancel(dask_client):
+    bad = submit(dask_client, "sleep", seconds=0.1, outcome="raise")
+    job = wait_for(dask_client, bad)
+    assert job["status"] == "failed" and "asked to fail" in job["error"]
+    long = submit(dask_client, "sleep", seconds=30, steps=300)
+    wait_for(dask_client, long, statuses=("running",))
+    time.sleep(0.5)
+    t0 = time.monotonic()
+    assert dask_client.delete(f"/jobs/{long}").status_code == 200
+    assert wait_for(dask_client, long)["status"] == "cancelled"
+    assert time.monotonic() - t0 < 2.0

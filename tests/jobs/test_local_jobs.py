@@ -1,0 +1,242 @@
+"""The job API on the embedded local backend: progress, results, failures, cancel, limits."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import threading
+import time
+
+import httpx
+import pytest
+from fastapi.testclient import TestClient
+
+from app.config import Settings
+from app.main import create_app
+
+from .conftest import Service, wait_for
+
+
+def submit(client, kind: str, **params) -> str:
+    r = client.post("/jobs", json={"kind": kind, "params": params})
+    assert r.status_code == 202, r.text
+    body = r.json()
+    assert body["status"] == "queued"
+    return body["id"]
+
+
+def test_progress_rises_then_result(jobs_client):
+    job_id = submit(jobs_client, "sleep", seconds=1.5, steps=15)
+    seen = []
+    while True:
+        job = jobs_client.get(f"/jobs/{job_id}").json()
+        seen.append(job["progress"])
+        if job["status"] == "succeeded":
+            break
+        assert job["status"] in ("queued", "running")
+        time.sleep(0.05)
+    assert seen == sorted(seen)  # never goes back
+    assert len({p for p in seen if 0 < p < 1}) >= 3  # reported on the way
+    assert job["progress"] == 1.0 and job["started"] and job["finished"]
+    assert jobs_client.get(f"/jobs/{job_id}/result").json()["slept"] == 1.5
+    assert job_id in [j["id"] for j in jobs_client.get("/jobs").json()]
+
+
+def test_result_is_409_until_succeeded(jobs_client):
+    job_id = submit(jobs_client, "sleep", seconds=1.0)
+    r = jobs_client.get(f"/jobs/{job_id}/result")
+    assert r.status_code == 409 and "job_id" in r.json()["detail"][0]["loc"]
+    wait_for(jobs_client, job_id)
+    assert jobs_client.get(f"/jobs/{job_id}/result").status_code == 200
+
+
+def test_workspace_job_matches_the_direct_call(jobs_client):
+    job_id = submit(jobs_client, "workspace", robot="pile_driver", samples=30000, seed=0,
+                    return_points=100)
+    assert wait_for(jobs_client, job_id)["status"] == "succeeded"
+    result = jobs_client.get(f"/jobs/{job_id}/result").json()
+    direct = jobs_client.post("/robots/pile_driver/workspace",
+                              json={"samples": 30000, "seed": 0, "return_points": 100}).json()
+    for key in ("min", "max", "radial", "vertical", "volume", "points", "projections"):
+        assert result[key] == direct[key], key
+
+
+def test_a_job_that_raises_fails_with_its_error(jobs_client):
+    job_id = submit(jobs_client, "sleep", seconds=0.1, outcome="raise")
+    job = wait_for(jobs_client, job_id)
+    assert job["status"] == "failed" and "asked to fail" in job["error"]
+    assert jobs_client.get(f"/jobs/{job_id}/result").status_code == 409
+
+
+def test_a_dying_worker_fails_only_its_job(jobs_client):
+    dying = submit(jobs_client, "sleep", seconds=0.2, outcome="exit")
+    fine = submit(jobs_client, "sleep", seconds=0.5)
+    assert wait_for(jobs_client, dying)["status"] == "failed"
+    assert "worker process died" in jobs_client.get(f"/jobs/{dying}").json()["error"]
+    assert wait_for(jobs_client, fine)["status"] == "succeeded"
+    # The pool keeps serving.
+    assert wait_for(jobs_client, submit(jobs_client, "echo", value=1))["status"] == "succeeded"
+
+
+def test_a_worker_killed_mid_job(jobs_client):
+    job_id = submit(jobs_client, "sleep", seconds=20, steps=200)
+    pid = None
+    while pid is None:
+        m = re.search(r"pid (\d+)", jobs_client.get(f"/jobs/{job_id}").json()["message"])
+        pid = int(m.group(1)) if m else None
+        time.sleep(0.05)
+    os.kill(pid, signal.SIGKILL)  # as the kernel's OOM killer would
+    job = wait_for(jobs_client, job_id)
+    assert job["status"] == "failed" and "signal 9" in job["error"]
+    assert wait_for(jobs_client, submit(jobs_client, "echo", value=2))["status"] == "succeeded"
+
+
+def test_cancel_queued_and_running(tmp_path):
+    settings = Settings(no_viewer=True, data_dir=tmp_path, workers=1)
+    with TestClient(create_app(settings)) as client:
+        running = submit(client, "sleep", seconds=30, steps=300)
+        queued = submit(client, "sleep", seconds=30)
+        wait_for(client, running, statuses=("running",))
+        r = client.delete(f"/jobs/{queued}")
+        assert r.status_code == 200 and r.json()["status"] == "cancelled"  # at once
+        t0 = time.monotonic()
+        assert client.delete(f"/jobs/{running}").status_code == 200
+        job = wait_for(client, running)
+        assert job["status"] == "cancelled" and time.monotonic() - t0 < 2.0
+        # Cancelling again, or an unknown job.
+        assert client.delete(f"/jobs/{running}").status_code == 409
+        assert client.delete("/jobs/nope").status_code == 404
+        assert wait_for(client, submit(client, "echo", value=3))["status"] == "succeeded"
+
+
+def test_queue_limit_answers_429(tmp_path):
+    settings = Settings(no_viewer=True, data_dir=tmp_path, workers=1, max_queued_jobs=2)
+    with TestClient(create_app(settings)) as client:
+        first = submit(client, "sleep", seconds=30, steps=300)
+        wait_for(client, first, statuses=("running",))
+        submit(client, "sleep", seconds=1)
+        submit(client, "sleep", seconds=1)
+        r = client.post("/jobs", json={"kind": "sleep", "params": {"seconds": 1}})
+        assert r.status_code == 429 and "queued" in r.json()["detail"][0]["msg"]
+        for job in client.get("/jobs").json():
+            if job["status"] in ("queued", "running"):
+                client.delete(f"/jobs/{job['id']}")
+
+
+@pytest.mark.parametrize(
+    "payload, status, loc",
+    [
+        ({"kind": "nope"}, 422, ["body", "kind"]),
+        ({"kind": "sleep", "params": {"seconds": -1}}, 422, ["body", "params", "seconds"]),
+        ({"kind": "sleep", "params": {"sleep": 1}}, 422, ["body", "params", "sleep"]),
+        ({"kind": "workspace", "params": {}}, 422, ["body", "params", "robot"]),
+        ({"kind": "workspace", "params": {"robot": "nope"}}, 404, ["body", "params", "robot"]),
+        ({"kind": "workspace", "params": {"robot": "pile_driver", "samples": 0}}, 422,
+         ["body", "params", "samples"]),
+        ({"params": {}}, 422, ["body", "kind"]),
+    ],
+)
+def test_params_are_checked_before_queueing(jobs_client, payload, status, loc):
+    before = len(jobs_client.get("/jobs").json())
+    r = jobs_client.post("/jobs", json=payload)
+    assert r.status_code == status, r.text
+    assert r.json()["detail"][0]["loc"] == loc
+    assert len(jobs_client.get("/jobs").json()) == before
+
+
+def test_unknown_job_is_404(jobs_client):
+    assert jobs_client.get("/jobs/nope").status_code == 404
+    assert jobs_client.get("/jobs/nope/result").status_code == 404
+
+
+def test_kinds_are_listed_with_their_params(jobs_client):
+    kinds = {k["kind"]: k for k in jobs_client.get("/jobs/kinds").json()}
+    assert {"sleep", "echo", "workspace"} <= set(kinds)
+    assert "samples" in kinds["workspace"]["params"]["properties"]
+
+
+def test_api_key_guards_state_changes(tmp_path):
+    settings = Settings(no_viewer=True, data_dir=tmp_path, api_key="s3cret")
+    with TestClient(create_app(settings)) as client:
+        body = {"kind": "echo", "params": {"value": 1}}
+        assert client.post("/jobs", json=body).status_code == 401
+        wrong = {"Authorization": "Bearer nope"}
+        assert client.post("/jobs", json=body, headers=wrong).status_code == 401
+        good = {"Authorization": "Bearer s3cret"}
+        job_id = client.post("/jobs", json=body, headers=good).json()["id"]
+        assert client.get(f"/jobs/{job_id}").status_code == 200  # reading needs no key
+        robot = {"id": "k", "joints": [{"lower": -1, "upper": 1}]}
+        assert client.post("/robots", json=robot).status_code == 401
+        assert client.post("/robots", json=robot, headers=good).status_code == 201
+        assert client.delete("/robots/k").status_code == 401
+        assert client.delete("/robots/k", headers=good).status_code == 204
+        assert client.post("/viewer/show", json={"robot": "pile_driver"}).status_code == 401
+        # Computations that change nothing stay open.
+        assert client.post("/robots/pile_driver/fk", json={"q": [0] * 6}).status_code == 200
+
+
+def test_request_body_cap_is_413(tmp_path):
+    settings = Settings(no_viewer=True, data_dir=tmp_path, max_body_bytes=10_000)
+    client = TestClient(create_app(settings))
+    big = {"q": [[0.0] * 6] * 1000}
+    r = client.post("/robots/pile_driver/fk", json=big)
+    assert r.status_code == 413 and r.json()["detail"][0]["type"] == "too_large"
+
+
+def test_sigkill_and_restart_lose_nothing(tmp_path):
+    """Kill -9 the whole service mid-job: finished results survive, the interrupted job is
+    queued again at the next start and runs to the end (our documented choice)."""
+    svc = Service(tmp_path, "--workers", "1")
+    try:
+        done = httpx.post(svc.url + "/jobs", json={"kind": "echo", "params": {"value": 7}})
+        done_id = done.json()["id"]
+        client = httpx.Client(base_url=svc.url)
+        wait_for(client, done_id)
+        long_id = client.post("/jobs", json={"kind": "sleep",
+                                             "params": {"seconds": 2, "steps": 20}}).json()["id"]
+        wait_for(client, long_id, statuses=("running",))
+        queued_id = client.post("/jobs", json={"kind": "echo",
+                                               "params": {"value": 8}}).json()["id"]
+        svc.kill()
+    finally:
+        svc.stop()
+    svc = Service(tmp_path, "--workers", "1")
+    try:
+        client = httpx.Client(base_url=svc.url)
+        assert client.get(f"/jobs/{done_id}/result").json() == {"value": 7}
+        job = wait_for(client, long_id)
+        assert job["status"] == "succeeded" and job["attempts"] == 2
+        assert wait_for(client, queued_id)["status"] == "succeeded"
+        assert client.get(f"/jobs/{queued_id}/result").json() == {"value": 8}
+    finally:
+        svc.stop()
+
+
+def test_hundred_jobs_from_ten_clients(tmp_path):
+    svc = Service(tmp_path, "--workers", "2")
+    ids: list[list[str]] = [[] for _ in range(10)]
+    try:
+        def client_run(k: int) -> None:
+            with httpx.Client(base_url=svc.url, timeout=30) as c:
+                for i in range(10):
+                    r = c.post("/jobs", json={"kind": "echo", "params": {"value": [k, i]}})
+                    assert r.status_code == 202
+                    ids[k].append(r.json()["id"])
+
+        threads = [threading.Thread(target=client_run, args=(k,)) for k in range(10)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        flat = [j for per in ids for j in per]
+        assert len(flat) == 100 and len(set(flat)) == 100
+        client = httpx.Client(base_url=svc.url, timeout=30)
+        for k, per in enumerate(ids):
+            for i, job_id in enumerate(per):
+                assert wait_for(client, job_id, timeout=120)["status"] == "succeeded"
+                assert client.get(f"/jobs/{job_id}/result").json() == {"value": [k, i]}
+        listed = [j["id"] for j in client.get("/jobs").json()]
+        assert sorted(listed) == sorted(flat)  # none lost, none duplicated
+    finally:
+        svc.stop()
