@@ -18,11 +18,11 @@ run: $(STAMP)
 	$(BIN)/python -m app
 
 test: $(STAMP)
-	$(BIN)/python -m ruff check app kinematics planning web tests benchmarks
+	$(BIN)/python -m ruff check app kinematics planning web tests benchmarks tools
 	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)
-	$(BIN)/python -m ruff check app kinematics planning web tests benchmarks
+	$(BIN)/python -m ruff check app kinematics planning web tests benchmarks tools
 
 bench: $(STAMP)
 	$(BIN)/pip install --quiet -e ".[test,bench]"

@@ -10,7 +10,7 @@ from .model import RobotModel
 
 __all__ = ["BUILTIN_IDS", "builtin_model", "builtin_models"]
 
-BUILTIN_IDS = ("pile_driver", "glt_palletizer", "hyper_redundant_9dof")
+BUILTIN_IDS = ("pile_driver", "glt_palletizer", "hyper_redundant_9dof", "tunnel_drill_arm")
 
 
 @cache

@@ -19,6 +19,8 @@ MAX_SAMPLES = 2_000_000
 CHUNK = 50_000
 #: Voxel edge used when none is given: the largest extent divided by this.
 AUTO_VOXEL_DIVISIONS = 30
+#: Largest voxel edge accepted (mm): a kilometre, far beyond any arm.
+MAX_VOXEL = 1e6
 #: Finest voxel grid accepted for the volume estimate.
 MAX_VOXELS_PER_AXIS = 100_000
 #: Cells along each axis of the projection images.
@@ -63,8 +65,8 @@ def sample_workspace(
     called after each chunk; ``max_samples`` caps ``samples`` (jobs allow more than calls)."""
     if not 1 <= samples <= max_samples:
         raise ValueError(f"samples must be between 1 and {max_samples}, got {samples}")
-    if voxel is not None and not voxel > 0:
-        raise ValueError(f"voxel must be positive, got {voxel}")
+    if voxel is not None and not 0 < voxel <= MAX_VOXEL:
+        raise ValueError(f"voxel must be in (0, {MAX_VOXEL:g}] mm, got {voxel}")
     rng = np.random.default_rng(seed)
     points = np.empty((samples, 3))
     for start in range(0, samples, CHUNK):

@@ -135,7 +135,8 @@ class WorkspaceRequest(Body):
     )
     seed: int = Field(0, ge=0, description="Seed of the random joint samples")
     voxel: float | None = Field(
-        None, gt=0, description="Voxel edge (mm) of the volume estimate; default extent/30"
+        None, gt=0, le=1e6, description="Voxel edge (mm) of the volume estimate; default "
+        "extent/30"
     )
     return_points: int = Field(
         20_000, ge=0, le=MAX_RETURN_POINTS, description="Points to return (subsampled)"

@@ -134,7 +134,7 @@ class WorkspaceParams(Params):
     robot: str = Field(description="Robot id")
     samples: int = Field(30_000, ge=1, le=20_000_000, description="Monte Carlo samples")
     seed: int = Field(0, ge=0)
-    voxel: float | None = Field(None, gt=0, description="Voxel edge, mm")
+    voxel: float | None = Field(None, gt=0, le=1e6, description="Voxel edge, mm")
     return_points: int = Field(20_000, ge=0, le=200_000)
     projections: bool = True
 
