@@ -11,7 +11,16 @@ from fastapi.responses import JSONResponse
 
 from . import __version__
 from .api.deps import require_api_key
-from .api.routes import cylinders, health, jobs, kinematics, robots, trajectories, viewer
+from .api.routes import (
+    cylinders,
+    health,
+    jobs,
+    kinematics,
+    rigs,
+    robots,
+    trajectories,
+    viewer,
+)
 from .config import Settings
 from .jobs.manager import JobManager
 from .limits import BodySizeLimit
@@ -78,6 +87,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.include_router(health.router)
     api.include_router(robots.router)
     api.include_router(robots.write_router, dependencies=guarded)
+    api.include_router(rigs.router)
     api.include_router(kinematics.router)
     api.include_router(cylinders.router)
     api.include_router(trajectories.router)

@@ -8,6 +8,7 @@ import threading
 
 from kinematics.library import builtin_models
 from kinematics.model import RobotModel
+from kinematics.rigs import BUILTIN_RIG_IDS, Rig, builtin_rig
 
 from .store import DuplicateError, Store
 
@@ -38,7 +39,11 @@ class RobotRegistry:
     """
 
     def __init__(self, store: Store | None = None) -> None:
-        self._builtin = builtin_models()
+        self.rigs: dict[str, Rig] = {rid: builtin_rig(rid) for rid in BUILTIN_RIG_IDS}
+        # Each rig's arms are robots too (mount applied), so every endpoint works on them.
+        self._builtin = builtin_models() | {
+            arm.id: arm for rig in self.rigs.values() for arm in rig.arms.values()
+        }
         self._store = store
         self._lock = threading.Lock()
         self._custom: dict[str, RobotModel] = self._load() if store is not None else {}

@@ -181,3 +181,11 @@ class JobRecordOut(BaseModel):
     finished: str | None
     error: str | None
     attempts: int = Field(description="Times the job was started (restarts re-run it)")
+
+
+class DrillIKRequest(Body):
+    holes: list[list[float]] = Field(
+        min_length=1, description="Hole positions [x, y, z] on the face, mm"
+    )
+    d7: float = Field(4022.0, description="Feed joint value, mm (paper 002: 4022)")
+    roll: float = Field(0.0, description="Roll joint value, rad")

@@ -10,7 +10,7 @@ from pydantic import ValidationError
 
 from ..registry import RobotRegistry
 from ..store import JobRecord, Store
-from .kinds import KINDS, get_kind
+from .kinds import KINDS, get_kind, load_kind_modules
 
 __all__ = ["JobManager", "JobParamsError", "QueueFullError", "JobStateError",
            "MAX_ATTEMPTS", "make_backend"]
@@ -64,6 +64,8 @@ class JobManager:
         self.workers = workers
         self.max_queued = max_queued
         self.backend = None
+        self._learned: dict[str, tuple[str, object]] = {}
+        load_kind_modules()
 
     # ---- lifecycle ------------------------------------------------------------------------
     def start(self) -> None:
@@ -98,7 +100,7 @@ class JobManager:
             err = exc.errors()[0]
             raise JobParamsError(["params", *err["loc"]], err["msg"]) from None
         payload = dict(clean)
-        if spec.needs_robot:
+        if spec.needs_robot or clean.get("robot") is not None:
             try:
                 payload["_model"] = self.registry.get(clean["robot"]).to_dict()
             except KeyError:
@@ -137,3 +139,23 @@ class JobManager:
         if job.status == "running" and self.backend is not None:
             self.backend.cancel(job_id)
         return job
+
+    def learned_ik(self, robot_id: str):
+        """The learned IK of the latest succeeded ``ik_train`` job for ``robot_id`` (cached),
+        with that job's id; None if there is none."""
+        import json
+
+        from kinematics.learned_ik import LearnedIK
+
+        latest = None
+        for job in self.store.list_jobs("succeeded"):
+            if job.kind == "ik_train" and job.params.get("robot") == robot_id:
+                latest = job
+        if latest is None:
+            return None
+        cached = self._learned.get(robot_id)
+        if cached is None or cached[0] != latest.id:
+            result = json.loads(self.store.job_result(latest.id) or "{}")
+            cached = (latest.id, LearnedIK.from_dict(result["learned"]))
+            self._learned[robot_id] = cached
+        return cached

@@ -5,22 +5,25 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 
+from kinematics.drilling import check_drilling_structure, drill_ik
 from kinematics.errors import MethodUnavailableError
 from kinematics.fk import fk, fk_frames
-from kinematics.ik import solve_ik
+from kinematics.ik import prepare_targets, solve_ik
 from kinematics.jacobian import dexterity, jacobian_and_pose
 from kinematics.model import RobotModel
+from kinematics.transforms import pose_errors
 from kinematics.workspace import MAX_SAMPLES, sample_workspace, workspace_report
 
 from ..deps import RobotDep
-from ..errors import conflict, invalid, too_large
+from ..errors import conflict, http_error, invalid, too_large
 from ..schemas import (
     MAX_FK_CONFIGS,
     MAX_FRAMES_CONFIGS,
     MAX_IK_POSES,
+    DrillIKRequest,
     FKRequest,
     FKResponse,
     IKRequest,
@@ -86,7 +89,7 @@ def jacobian_endpoint(robot: RobotDep, body: JacobianRequest) -> JacobianRespons
 
 
 @router.post("/ik", response_model=IKResponse)
-def inverse_kinematics(robot: RobotDep, body: IKRequest) -> JSONResponse:
+def inverse_kinematics(robot: RobotDep, body: IKRequest, request: Request) -> JSONResponse:
     """Joint solutions for one or many target poses; unreachable targets say why."""
     try:
         T = np.asarray(body.pose, dtype=float)
@@ -101,6 +104,8 @@ def inverse_kinematics(robot: RobotDep, body: IKRequest) -> JSONResponse:
     q0 = None
     if body.q0 is not None:
         q0 = joint_rows(robot, body.q0, "q0")[0][0]
+    if body.method == "learned":
+        return _learned_ik(robot, T, request.app.state.jobs)
     try:
         results = solve_ik(
             robot, T, method=body.method, q0=q0, all_solutions=body.all_solutions
@@ -111,22 +116,45 @@ def inverse_kinematics(robot: RobotDep, body: IKRequest) -> JSONResponse:
         raise invalid(["method"], str(exc)) from None
     except ValueError as exc:
         raise invalid(["pose"], str(exc)) from None
-    payload = [
-        {
-            "success": r.success,
-            "status": r.status.value,
-            "q": None if r.q is None else r.q.tolist(),
-            "solutions": r.solutions.tolist(),
-            "position_error": _finite_or_none(r.position_error),
-            "rotation_error": _finite_or_none(r.rotation_error),
-            "within_limits": bool(r.within_limits),
-            "singular": bool(r.singular),
-            "method": r.method,
-            "message": r.message,
-        }
-        for r in results
-    ]
-    return JSONResponse({"results": payload})
+    return JSONResponse({"results": [_ik_json(r) for r in results]})
+
+
+def _ik_json(r) -> dict:
+    return {
+        "success": r.success,
+        "status": r.status.value,
+        "q": None if r.q is None else r.q.tolist(),
+        "solutions": r.solutions.tolist(),
+        "position_error": _finite_or_none(r.position_error),
+        "rotation_error": _finite_or_none(r.rotation_error),
+        "within_limits": bool(r.within_limits),
+        "singular": bool(r.singular),
+        "method": r.method,
+        "message": r.message,
+    }
+
+
+def _learned_ik(robot: RobotModel, T: np.ndarray, jobs) -> JSONResponse:
+    """The learned map's guess polished by the numeric IK; both reported."""
+    found = jobs.learned_ik(robot.id)
+    if found is None:
+        raise conflict(["method"], f"no learned IK is trained for robot '{robot.id}': submit "
+                       "an 'ik_train' job first")
+    job_id, learned = found
+    try:
+        T = prepare_targets(T)
+    except ValueError as exc:
+        raise invalid(["pose"], str(exc)) from None
+    guess, results = learned.polish(robot, T)
+    dp, dr = pose_errors(fk(robot, guess), T)
+    out = []
+    for r, g, p, a in zip(results, guess, dp, dr):
+        item = _ik_json(r)
+        item["method"] = "learned+numeric"
+        item["learned"] = {"q": g.tolist(), "position_error": float(p),
+                           "rotation_error": float(a), "model_job": job_id}
+        out.append(item)
+    return JSONResponse({"results": out})
 
 
 @router.post("/workspace", response_model=WorkspaceResponse)
@@ -143,3 +171,22 @@ def workspace(robot: RobotDep, body: WorkspaceRequest) -> JSONResponse:
         raise invalid(["voxel"], str(exc)) from None
     out = workspace_report(ws, body.return_points, body.projections)
     return JSONResponse(out)
+
+
+@router.post("/drill-ik", response_model=IKResponse)
+def drilling_ik(robot: RobotDep, body: DrillIKRequest) -> JSONResponse:
+    """Drilling arms: joint values that put the drill tip on each hole, drilling
+    perpendicular to the face (the base x axis), feed joint fixed."""
+    holes = np.asarray(body.holes, dtype=float)
+    if len(holes) > MAX_IK_POSES:
+        raise too_large(["holes"], f"at most {MAX_IK_POSES} holes per call, got {len(holes)}")
+    try:
+        check_drilling_structure(robot)
+    except ValueError as exc:
+        raise http_error(422, ["path", "robot_id"], f"not a drilling arm: {exc}",
+                         "value_error") from None
+    try:
+        results = drill_ik(robot, holes, d7=body.d7, roll=body.roll)
+    except ValueError as exc:
+        raise invalid(["holes"], str(exc)) from None
+    return JSONResponse({"results": [_ik_json(r) for r in results]})
