@@ -212,13 +212,13 @@ class RobotModel:
         names = [j.name for j in joints]
         if len(set(names)) != len(names):
             raise ModelError("joints", "joint names must be unique")
-        base = _pose_field(data.get("base"), "base")
-        tool = _pose_field(data.get("tool"), "tool")
+        base = pose_field(data.get("base"), "base")
+        tool = pose_field(data.get("tool"), "tool")
         home = None
         if convention == "poe":
             if data.get("home") is None:
                 raise ModelError("home", "a product-of-exponentials model needs 'home'")
-            home = _pose_field(data["home"], "home")
+            home = pose_field(data["home"], "home")
         extras = {k: v for k, v in data.items() if k not in _MODEL_KEYS}
         return cls(
             id=model_id, name=name, convention=convention, joints=joints,
@@ -251,7 +251,8 @@ def _vector3(value: Any, path: str) -> tuple[float, float, float]:
     return vals  # type: ignore[return-value]
 
 
-def _pose_field(value: Any, path: str) -> np.ndarray:
+def pose_field(value: Any, path: str) -> np.ndarray:
+    """A 4x4 rigid pose from JSON (identity if None), read-only; ModelError naming ``path``."""
     if value is None:
         T = np.eye(4)
     else:

@@ -22,8 +22,7 @@ from typing import Any
 import numpy as np
 
 from .library import builtin_model
-from .model import ModelError, RobotModel
-from .transforms import rigidity_error
+from .model import ModelError, RobotModel, pose_field
 
 __all__ = ["BUILTIN_RIG_IDS", "Rig", "builtin_rig"]
 
@@ -102,7 +101,7 @@ class Rig:
                 model = models(model_id)
             except KeyError as exc:
                 raise ModelError(f"{path}.model", f"unknown model {model_id!r}") from exc
-            mount = _mount(arm.get("base"), f"{path}.base")
+            mount = pose_field(arm.get("base"), f"{path}.base")
             data_arm = model.to_dict()
             data_arm["id"] = f"{rig_id}-{arm_name}"
             data_arm["name"] = f"{model.name}: {arm_name} arm of {name}"
@@ -112,24 +111,6 @@ class Rig:
             arm_models[arm_name] = model_id
         extras = {k: v for k, v in data.items() if k not in _RIG_KEYS}
         return cls(rig_id, name, arms, mounts, arm_models, extras)
-
-
-def _mount(value: Any, path: str) -> np.ndarray:
-    if value is None:
-        T = np.eye(4)
-    else:
-        try:
-            T = np.array(value, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise ModelError(path, "must be a 4x4 list of numbers") from exc
-        if T.shape != (4, 4):
-            raise ModelError(path, f"must be 4x4, got shape {list(T.shape)}")
-        if not np.all(np.isfinite(T)):
-            raise ModelError(path, "must be finite")
-        if rigidity_error(T) > 1e-6:
-            raise ModelError(path, "is not a rigid transform")
-    T.setflags(write=False)
-    return T
 
 
 @cache

@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import json
 import logging
-import threading
 import time
 
 from ..store import Store
+from .backend import SupervisedBackend
 from .kinds import JobCancelled, load_kind_modules, run_kind
 
 __all__ = ["DaskBackend", "run_on_cluster"]
@@ -54,7 +54,7 @@ def run_on_cluster(job_id: str, kind: str, payload: dict) -> str:
     return json.dumps(run_kind(kind, payload, progress), allow_nan=False)
 
 
-class DaskBackend:
+class DaskBackend(SupervisedBackend):
     """Hands queued jobs of ``store`` to the Dask scheduler at ``address``."""
 
     name = "dask"
@@ -66,16 +66,10 @@ class DaskBackend:
             raise RuntimeError(
                 "the dask backend needs the 'dask' extra: pip install '.[dask]'"
             ) from exc
-        self.store = store
+        super().__init__(store, workers)
         self.address = address
         self.client = Client(address, timeout="10s", set_as_default=False)
-        self.workers = max(1, int(workers))
         self._futures: dict[str, object] = {}
-        self._cancel: set[str] = set()
-        self._lock = threading.Lock()
-        self._wake = threading.Event()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
 
     def capacity(self) -> int:
         """Jobs to keep in flight: the cluster's worker threads (at least ``workers``)."""
@@ -85,46 +79,23 @@ class DaskBackend:
             threads = 0
         return max(self.workers, threads)
 
-    def start(self) -> None:
-        self._thread = threading.Thread(target=self._loop, name="kinoplan-dask", daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        self._stop.set()
-        self._wake.set()
-        if self._thread is not None:
-            self._thread.join(timeout=10)
+    def _shutdown(self) -> None:
         for job_id, fut in list(self._futures.items()):
             self._signal_cancel(job_id)
             fut.cancel()
         self.client.close()
-
-    def notify(self) -> None:
-        self._wake.set()
-
-    def cancel(self, job_id: str) -> None:
-        with self._lock:
-            self._cancel.add(job_id)
-        self._wake.set()
-
-    def alive(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
 
     def _signal_cancel(self, job_id: str) -> None:
         from distributed import Event
 
         Event(_names(job_id)[1], client=self.client).set()
 
-    def _loop(self) -> None:
-        while not self._stop.is_set():
-            try:
-                self._handle_cancels()
-                self._start_jobs()
-                self._collect()
-            except Exception:  # noqa: BLE001 - keep supervising whatever happens
-                log.exception("dask job supervisor pass failed")
-            self._wake.wait(POLL_S)
-            self._wake.clear()
+    def _pass(self) -> None:
+        self._handle_cancels()
+        self._start_jobs()
+        self._collect()
+        self._wake.wait(POLL_S)
+        self._wake.clear()
 
     def _start_jobs(self) -> None:
         cap = self.capacity()
@@ -152,9 +123,7 @@ class DaskBackend:
                     self.store.set_progress(job_id, float(got[0]), str(got[1]))
                 continue
             self._futures.pop(job_id)
-            with self._lock:
-                cancelled = job_id in self._cancel
-                self._cancel.discard(job_id)
+            cancelled = self._take_cancel(job_id)
             if status == "finished":
                 self.store.finish_job(job_id, "succeeded", result_json=fut.result(),
                                       message="done")
@@ -174,8 +143,6 @@ class DaskBackend:
                     pass
 
     def _handle_cancels(self) -> None:
-        with self._lock:
-            wanted = [j for j in self._cancel if j in self._futures]
-        for job_id in wanted:
+        for job_id in self._cancel_requested(set(self._futures)):
             self._signal_cancel(job_id)
             self._futures[job_id].cancel()

@@ -14,12 +14,12 @@ import json
 import logging
 import multiprocessing
 import signal
-import threading
 import time
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 
 from ..store import Store
+from .backend import SupervisedBackend
 from .kinds import JobCancelled, load_kind_modules, run_kind
 
 __all__ = ["LocalBackend"]
@@ -68,63 +68,27 @@ class _Running:
     cancel_at: float | None = None
 
 
-class LocalBackend:
+class LocalBackend(SupervisedBackend):
     """Runs queued jobs of ``store`` in up to ``workers`` processes at a time."""
 
     name = "local"
 
     def __init__(self, store: Store, workers: int) -> None:
-        self.store = store
-        self.workers = max(1, int(workers))
+        super().__init__(store, workers)
         self._ctx = multiprocessing.get_context("forkserver")
         self._ctx.set_forkserver_preload(["numpy", "scipy", "app.jobs.kinds"])
         self._running: dict[str, _Running] = {}
-        self._cancel: set[str] = set()
-        self._lock = threading.Lock()
-        self._wake = threading.Event()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
 
-    # ---- control (any thread) ---------------------------------------------------------
-    def start(self) -> None:
-        self._thread = threading.Thread(target=self._loop, name="kinoplan-jobs", daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        """Stop the supervisor; jobs still running are stopped and left 'running' in the
-        store, so the next start queues them again."""
-        self._stop.set()
-        self._wake.set()
-        if self._thread is not None:
-            self._thread.join(timeout=10)
+    def _shutdown(self) -> None:
         for job_id, run in list(self._running.items()):
             self._terminate(run)
             run.conn.close()
             self._running.pop(job_id, None)
 
-    def notify(self) -> None:
-        """A job was queued: look at the queue now rather than at the next poll."""
-        self._wake.set()
-
-    def cancel(self, job_id: str) -> None:
-        """Stop a running job (the store already marks queued ones cancelled)."""
-        with self._lock:
-            self._cancel.add(job_id)
-        self._wake.set()
-
-    def alive(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
-
-    # ---- the supervisor loop ------------------------------------------------------------
-    def _loop(self) -> None:
-        while not self._stop.is_set():
-            try:
-                self._handle_cancels()
-                self._start_jobs()
-                self._collect()
-            except Exception:  # the supervisor must survive anything: log, go on
-                log.exception("job supervisor pass failed")
-                time.sleep(POLL_S)
+    def _pass(self) -> None:
+        self._handle_cancels()
+        self._start_jobs()
+        self._collect()
 
     def _start_jobs(self) -> None:
         while len(self._running) < self.workers and not self._stop.is_set():
@@ -179,9 +143,7 @@ class LocalBackend:
     def _finish(self, job_id: str, run: _Running) -> None:
         self._running.pop(job_id, None)
         run.conn.close()
-        with self._lock:
-            cancelled = job_id in self._cancel
-            self._cancel.discard(job_id)
+        cancelled = self._take_cancel(job_id)
         kind, text = run.outcome if run.outcome else (None, None)
         if cancelled or kind == "cancelled":
             self.store.finish_job(job_id, "cancelled", message="cancelled")
@@ -200,10 +162,7 @@ class LocalBackend:
         log.info("job %s ended (%s)", job_id, kind or "died")
 
     def _handle_cancels(self) -> None:
-        with self._lock:
-            wanted = [j for j in self._cancel if j in self._running]
-            self._cancel.intersection_update(set(self._running) | set(wanted))
-        for job_id in wanted:
+        for job_id in self._cancel_requested(set(self._running)):
             run = self._running[job_id]
             if run.cancel_at is None:
                 run.cancel_at = time.monotonic()
