@@ -8,6 +8,7 @@ from contextlib import asynccontextmanager
 from fastapi import Depends, FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from . import __version__
 from .api.deps import require_api_key
@@ -21,6 +22,7 @@ from .api.routes import (
     trajectories,
     viewer,
 )
+from .api.schemas import ErrorOut
 from .config import Settings
 from .jobs.manager import JobManager
 from .limits import BodySizeLimit
@@ -28,6 +30,16 @@ from .registry import RobotRegistry
 from .store import Store
 
 __all__ = ["create_app", "app"]  # noqa: F822 (``app`` is built lazily by __getattr__)
+
+#: Error answers any operation may give (documented once for all of them in OpenAPI).
+ERROR_RESPONSES: dict[int | str, dict] = {
+    code: {"model": ErrorOut, "description": text}
+    for code, text in {
+        400: "Body could not be parsed", 401: "API key required", 403: "Read-only",
+        404: "Unknown robot, rig or job", 409: "Conflict or not ready", 413: "Too large",
+        429: "Job queue full", 503: "Part of the service not running",
+    }.items()
+}
 
 DESCRIPTION = """Kinematics and motion planning for heavy-duty hydraulic arms and industrial
 robots. Units: mm, rad, s. Poses are 4x4 homogeneous matrices as nested lists (row-major)."""
@@ -75,7 +87,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             api.state.jobs.stop()
 
     api = FastAPI(title="kinoplan", version=__version__, description=DESCRIPTION,
-                  lifespan=lifespan)
+                  lifespan=lifespan, responses=ERROR_RESPONSES)
     api.state.settings = settings
     api.state.store = Store.in_data_dir(settings.data_dir)
     api.state.registry = RobotRegistry(api.state.store)
@@ -93,6 +105,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.include_router(trajectories.router)
     api.include_router(jobs.router)
     api.include_router(viewer.router, dependencies=guarded)
+
+    @api.exception_handler(StarletteHTTPException)
+    async def _http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        # Errors raised by the framework itself (unparseable body, unknown path, method not
+        # allowed) carry a string; give them the service's list shape too.
+        detail = exc.detail
+        if not isinstance(detail, list):
+            detail = [{"loc": [], "msg": str(detail), "type": "http_error"}]
+        return JSONResponse(status_code=exc.status_code, content={"detail": detail},
+                            headers=getattr(exc, "headers", None))
 
     @api.exception_handler(RequestValidationError)
     async def _validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -183,9 +183,24 @@ class JobRecordOut(BaseModel):
     attempts: int = Field(description="Times the job was started (restarts re-run it)")
 
 
+Point3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+
+
 class DrillIKRequest(Body):
-    holes: list[list[float]] = Field(
+    holes: list[Point3] = Field(
         min_length=1, description="Hole positions [x, y, z] on the face, mm"
     )
     d7: float = Field(4022.0, description="Feed joint value, mm (paper 002: 4022)")
     roll: float = Field(0.0, description="Roll joint value, rad")
+
+
+class ErrorItem(BaseModel):
+    loc: list[str | int]
+    msg: str
+    type: str
+
+
+class ErrorOut(BaseModel):
+    """Every 4xx/5xx answer: ``detail`` lists what is wrong and where (``loc``)."""
+
+    detail: list[ErrorItem]

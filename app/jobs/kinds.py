@@ -61,7 +61,11 @@ class JobKind:
 KINDS: dict[str, JobKind] = {}
 
 #: Modules that register job kinds; a worker imports them all before running a job.
-KIND_MODULES: list[str] = ["app.jobs.kinds", "app.jobs.model_kinds"]
+KIND_MODULES: list[str] = [
+    "app.jobs.kinds",
+    "app.jobs.model_kinds",
+    "app.jobs.path_kinds",
+]
 
 
 def load_kind_modules() -> None:

@@ -20,7 +20,7 @@ from multiprocessing.connection import Connection, wait
 
 from ..store import Store
 from .backend import SupervisedBackend
-from .kinds import JobCancelled, load_kind_modules, run_kind
+from .kinds import KIND_MODULES, JobCancelled, load_kind_modules, run_kind
 
 __all__ = ["LocalBackend"]
 
@@ -76,7 +76,11 @@ class LocalBackend(SupervisedBackend):
     def __init__(self, store: Store, workers: int) -> None:
         super().__init__(store, workers)
         self._ctx = multiprocessing.get_context("forkserver")
-        self._ctx.set_forkserver_preload(["numpy", "scipy", "app.jobs.kinds"])
+        # Workers fork from a server that has already imported what jobs use.
+        self._ctx.set_forkserver_preload(
+            ["numpy", "scipy", "scipy.optimize", "scipy.interpolate", "scipy.sparse",
+             *KIND_MODULES]
+        )
         self._running: dict[str, _Running] = {}
 
     def _shutdown(self) -> None:

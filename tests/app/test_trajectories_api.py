@@ -105,7 +105,7 @@ ERRORS = [
     (body(method="cubic"), 422, "method"),
     (body(waypoints=[[0.0] * 6, [0.0] * 5, [0.0] * 6]), 422, "waypoints"),
     (body(robot="glt_palletizer", waypoints=[[0.0] * 5] * 3), 422, "waypoints"),
-    (body(robot="nope"), 404, "robot_id"),
+    (body(robot="nope"), 404, "robot"),
     (body(limits={"velocity": -1}), 422, "velocity"),
     (body(limits={"velocity": [1, 2]}), 422, "velocity"),
     (body(time_scaling=True), 422, "limits"),

@@ -36,6 +36,9 @@ from ..schemas import (
 
 router = APIRouter(prefix="/robots/{robot_id}", tags=["kinematics"])
 
+#: Largest |joint value| accepted (rad or mm): far beyond any joint, short of float trouble.
+MAX_JOINT_VALUE = 1e6
+
 
 def joint_rows(model: RobotModel, q: list, field: str = "q") -> tuple[np.ndarray, bool]:
     """Body ``q`` (one configuration or a list) -> ``(N, dof)`` array and whether it was one."""
@@ -47,7 +50,14 @@ def joint_rows(model: RobotModel, q: list, field: str = "q") -> tuple[np.ndarray
             raise invalid(
                 loc, f"expected {model.dof} joint values for robot '{model.id}', got {len(row)}"
             )
-    return np.asarray(rows, dtype=float).reshape(len(rows), model.dof), single
+    q_arr = np.asarray(rows, dtype=float).reshape(len(rows), model.dof)
+    big = np.abs(q_arr) > MAX_JOINT_VALUE
+    if big.any():
+        k, j = (int(v) for v in np.argwhere(big)[0])
+        loc = [field, j] if single else [field, k, j]
+        raise invalid(loc, f"joint values beyond {MAX_JOINT_VALUE:.0e} (rad or mm) are not "
+                      "physical")
+    return q_arr, single
 
 
 def _finite_or_none(x: float) -> float | None:

@@ -16,7 +16,7 @@ from planning.time_scaling import fit_to_limits
 
 from ...plots import trajectory_png
 from ..deps import RegistryDep
-from ..errors import invalid, not_found
+from ..errors import http_error, invalid
 from ..trajectory_schemas import (
     MAX_TRAJECTORY_SAMPLES,
     CartesianRequest,
@@ -39,7 +39,8 @@ def _robot(registry, robot_id: str | None) -> RobotModel | None:
     try:
         return registry.get(robot_id)
     except KeyError:
-        raise not_found("robot", robot_id) from None
+        raise http_error(404, ["body", "robot"], f"unknown robot '{robot_id}'",
+                         "not_found") from None
 
 
 def _per_joint(value, dof: int, field: str) -> np.ndarray | None:
@@ -167,7 +168,8 @@ def cartesian(body: CartesianRequest, registry: RegistryDep) -> JSONResponse:
     q0 = np.asarray(body.q0 if body.q0 is not None else robot.mid_configuration(), dtype=float)
     T0 = fk(robot, q0)
     if body.rotation is not None:
-        R = np.asarray(body.rotation, dtype=float)
+        rows = body.rotation
+        R = np.asarray(rows, dtype=float) if all(len(r) == 3 for r in rows) else np.zeros(0)
         if R.shape != (3, 3) or np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or \
                 np.linalg.det(R) < 0:
             raise invalid(["rotation"], "must be a 3x3 rotation matrix")

@@ -1,0 +1,187 @@
+"""Benchmark the path planners of paper 000 (section 4) side by side, with OMPL's RRT*.
+
+For each scene, in one run:
+
+1. improved vs basic wolf pack with Table 2's parameters over ``--runs`` seeds (paper: the
+   improved one's average path is 16.575 % shorter, Table 4): mean length of the optimisers'
+   own paths (what the paper compares) and after our shortcutting, mean time;
+2. the paper's baselines (GA, ACA, AFSA) with its printed parameters, same seeds;
+3. ``auto`` (visibility graph + tightening) against the certified shortest path (a fine
+   visibility graph), and our RRT*;
+4. OMPL's RRT* (``pip install ompl``, the ``bench`` extra) given the same wall time as
+   ``auto`` and as our RRT*, with our exact segment check as its motion validator; its path
+   is verified with the same exact check.
+
+Scenes: paper 000's toy setup (100 mm cube, start [1, 1, 1], goal [100, 100, 100], five
+spheres; the paper does not print where, ours are the tests' seeded layouts across the
+diagonal) and a tool-only arm scene at pile_driver's scale (the tests' reachable endpoints,
+two spheres). It is a report: the exit status is 0 whatever the numbers.
+
+Run: ``.venv/bin/python benchmarks/bench_path_planning.py [--runs 30] [--scenes toy0,arm]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+
+import numpy as np
+
+from planning.auto_planner import certified_shortest_path
+from planning.paths import path_length, plan_path
+from planning.scene import Scene
+
+START, GOAL = np.array([1.0, 1.0, 1.0]), np.array([100.0, 100.0, 100.0])
+PAPER_TABLE4 = {"improved": 3832.23, "basic": 4593.62}  # average path, mm
+
+
+def toy_scene(layout: int) -> Scene:
+    """The tests' layouts: five spheres (r 12-18 mm) across the diagonal, jittered."""
+    rng = np.random.default_rng(layout)
+    t = np.array([0.2, 0.35, 0.5, 0.65, 0.8])
+    centres = START + t[:, None] * (GOAL - START) + rng.uniform(-10, 10, (5, 3))
+    radii = rng.uniform(12, 18, 5)
+    return Scene.create([[0, 0, 0], [100, 100, 100]],
+                        [{"center": c.tolist(), "radius": float(r)}
+                         for c, r in zip(centres, radii)])
+
+
+def arm_scene() -> tuple[Scene, np.ndarray, np.ndarray]:
+    """pile_driver tool positions at q = (-0.9, 0.5, -0.6, -0.4, 0, 0) and (0, 0.5, ...),
+    one sphere under the line between them, one below the start (tests/planning)."""
+    a = np.array([1125.2917429, -1418.04563696, 267.5709755])
+    b = np.array([1810.28587111, 0.0, 267.5709755])
+    mid = (a + b) / 2
+    scene = Scene.create([[-2500, -2500, -1500], [2500, 2500, 2000]], [
+        {"center": (mid + [0, 0, -130]).tolist(), "radius": 200},
+        {"center": [1200, -1500, -300], "radius": 200}], safety_margin=10)
+    return scene, a, b
+
+
+def ompl_rrt_star(scene: Scene, start, goal, seconds: float, seed: int):
+    """OMPL RRT* for ``seconds`` with our exact checks; returns (path or None, seconds)."""
+    from ompl import base as ob
+    from ompl import geometric as og
+    from ompl import util as ou
+
+    ou.setLogLevel(ou.LOG_NONE)
+    ou.RNG.setSeed(seed)
+    space = ob.RealVectorStateSpace(3)
+    bounds = ob.RealVectorBounds(3)
+    for i in range(3):
+        bounds.setLow(i, float(scene.lower[i]))
+        bounds.setHigh(i, float(scene.upper[i]))
+    space.setBounds(bounds)
+    ss = og.SimpleSetup(space)
+    margin = scene.safety_margin
+
+    def xyz(s) -> np.ndarray:
+        return np.array([[s[0], s[1], s[2]]])
+
+    ss.setStateValidityChecker(lambda s: bool(scene.point_clearance(xyz(s)).min() >= margin))
+
+    class ExactMotion(ob.MotionValidator):
+        def checkMotion(self, a, b):  # noqa: N802 - OMPL's name
+            return bool(scene.min_segment_clearance(xyz(a), xyz(b))[0] >= margin)
+
+    si = ss.getSpaceInformation()
+    validator = ExactMotion(si)
+    si.setMotionValidator(validator)
+    s0, s1 = space.allocState(), space.allocState()
+    s0[0:3], s1[0:3] = [float(v) for v in start], [float(v) for v in goal]
+    ss.setStartAndGoalStates(s0, s1)
+    ss.setPlanner(og.RRTstar(si))
+    ss.getProblemDefinition().setOptimizationObjective(ob.PathLengthOptimizationObjective(si))
+    t0 = time.perf_counter()
+    ss.solve(seconds)
+    elapsed = time.perf_counter() - t0
+    if not ss.haveExactSolutionPath():
+        return None, elapsed
+    p = ss.getSolutionPath()
+    return np.array([[p.getState(i)[k] for k in range(3)]
+                     for i in range(p.getStateCount())]), elapsed
+
+
+def row(name: str, lengths, raw, times, ok: int, runs: int) -> str:
+    lengths = np.asarray(lengths, float)
+    fmt = (lambda x: f"{x:10.2f}") if len(lengths) else (lambda x: f"{'-':>10}")
+    best = fmt(lengths.min()) if len(lengths) else fmt(0)
+    mean = fmt(lengths.mean()) if len(lengths) else fmt(0)
+    mraw = fmt(np.mean(raw)) if len(raw) else fmt(0)
+    return f"  {name:<22}{best}{mean}{mraw}{np.mean(times):9.3f}   {ok}/{runs}"
+
+
+def bench_scene(label: str, scene: Scene, start, goal, runs: int) -> dict:
+    print(f"\n== {label}: {len(scene.obstacles)} obstacles, straight line "
+          f"{np.linalg.norm(goal - start):.2f} mm, margin {scene.safety_margin} mm")
+    print(f"  {'algorithm':<22}{'best':>10}{'mean':>10}{'mean raw':>10}{'time s':>9}   ok")
+    out = {}
+    for algorithm in ("wolfpack_improved", "wolfpack", "aca", "ga", "afsa"):
+        res = [plan_path(scene, start, goal, algorithm, seed) for seed in range(runs)]
+        good = [r for r in res if r.success]
+        out[algorithm] = good
+        print(row(algorithm, [r.length for r in good], [r.raw_length for r in good],
+                  [r.runtime_s for r in res], len(good), runs))
+    auto = plan_path(scene, start, goal, "auto", 0)
+    auto = plan_path(scene, start, goal, "auto", 0)  # warm (imports, caches)
+    rrt = [plan_path(scene, start, goal, "rrt_star", seed) for seed in range(min(runs, 10))]
+    rrt_ok = [r for r in rrt if r.success]
+    print(row("auto", [auto.length], [auto.raw_length], [auto.runtime_s], int(auto.success),
+              1))
+    print(row("rrt_star (ours)", [r.length for r in rrt_ok], [r.raw_length for r in rrt_ok],
+              [r.runtime_s for r in rrt], len(rrt_ok), len(rrt)))
+    t0 = time.perf_counter()
+    cert = certified_shortest_path(scene, start, goal, samples=800)
+    t_cert = time.perf_counter() - t0
+    if cert is not None:
+        L = path_length(cert)
+        print(f"  certified (800 samples/obstacle): {L:.3f} mm in {t_cert:.1f} s; auto is "
+              f"{100 * (auto.length / L - 1):+.3f} % of it")
+    for name, budget in (("auto's time", auto.runtime_s),
+                         ("our RRT*'s time", float(np.mean([r.runtime_s for r in rrt])))):
+        try:
+            lengths, clear = [], 0
+            for seed in range(min(runs, 10)):
+                path, _ = ompl_rrt_star(scene, start, goal, max(budget, 0.01), seed + 1)
+                if path is not None and scene.path_is_clear(path):
+                    clear += 1
+                    lengths.append(path_length(path))
+            mean = f"{np.mean(lengths):.2f}" if lengths else "-"
+            print(f"  OMPL RRT* at {name} ({budget:.3f} s): mean {mean} mm, "
+                  f"{clear}/{min(runs, 10)} verified clear")
+        except ImportError:
+            print("  OMPL RRT*: the ompl package is not installed (pip install ompl)")
+            break
+    imp = np.mean([r.length for r in out["wolfpack_improved"]])
+    bas = np.mean([r.length for r in out["wolfpack"]])
+    imp_raw = np.mean([r.raw_length for r in out["wolfpack_improved"]])
+    bas_raw = np.mean([r.raw_length for r in out["wolfpack"]])
+    paper = 100 * (1 - PAPER_TABLE4["improved"] / PAPER_TABLE4["basic"])
+    print(f"  improved vs basic wolf pack, mean over {runs} seeds: "
+          f"{100 * (1 - imp_raw / bas_raw):.1f} % shorter (optimisers' paths), "
+          f"{100 * (1 - imp / bas):.1f} % after shortcutting; paper (Table 4): {paper:.1f} %")
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=30, help="seeds per algorithm")
+    ap.add_argument("--scenes", default="toy0,toy1,toy2,arm",
+                    help="comma-separated: toy0, toy1, toy2, arm")
+    args = ap.parse_args()
+    print(f"kinoplan path-planning benchmark; python {platform.python_version()}, "
+          f"numpy {np.__version__}, {platform.machine()}")
+    for label in args.scenes.split(","):
+        if label.startswith("toy"):
+            bench_scene(f"toy scene, layout {label[3:]}", toy_scene(int(label[3:])), START,
+                        GOAL, args.runs)
+        elif label == "arm":
+            scene, a, b = arm_scene()
+            bench_scene("pile_driver arm scene (tool path only)", scene, a, b, args.runs)
+        else:
+            raise SystemExit(f"--scenes: unknown scene {label!r}")
+
+
+if __name__ == "__main__":
+    main()

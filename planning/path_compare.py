@@ -1,0 +1,88 @@
+"""Run planners over many seeds on one scene: rows shaped like paper 000's Tables 3 and 4.
+
+Paper 000 reports, per algorithm, the best path length, the average path length and the
+running time. ``compare_planners`` runs each algorithm once per seed (seeds ``0..runs-1``
+offset by ``seed``) and reports those three over the successful runs, plus the number of
+successes, the mean length of the optimisers' own paths before shortcutting (what the
+paper's figures show) and the mean number of objective evaluations.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from .paths import ALGORITHMS, PathResult, plan_path
+from .scene import Scene
+
+__all__ = ["CompareRow", "compare_planners"]
+
+
+@dataclass(frozen=True)
+class CompareRow:
+    """One algorithm over ``runs`` seeds. Lengths in mm (NaN when no run succeeded),
+    times in s."""
+
+    algorithm: str
+    runs: int
+    successes: int
+    best_length: float
+    mean_length: float
+    mean_raw_length: float
+    mean_time_s: float
+    mean_evaluations: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                for k, v in asdict(self).items()}
+
+
+def compare_planners(
+    scene: Scene,
+    start,
+    goal,
+    algorithms: Sequence[str] = ALGORITHMS,
+    runs: int = 30,
+    seed: int = 0,
+    params: dict[str, dict[str, Any]] | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> list[CompareRow]:
+    """Plan with every algorithm for ``runs`` seeds; one row per algorithm, in order.
+
+    ``params`` maps an algorithm to its parameters (as for ``plan_path``).
+    """
+    if runs < 1:
+        raise ValueError("runs must be at least 1")
+    for a in algorithms:
+        if a not in ALGORITHMS:
+            raise ValueError(f"algorithms: unknown algorithm {a!r}; known: "
+                             f"{', '.join(ALGORITHMS)}")
+    params = params or {}
+    unknown = set(params) - set(algorithms)
+    if unknown:
+        raise ValueError(f"params.{sorted(unknown)[0]} names no algorithm being compared")
+    rows = []
+    total, done = len(algorithms) * runs, 0
+    for a in algorithms:
+        results: list[PathResult] = []
+        for r in range(runs):
+            results.append(plan_path(scene, start, goal, a, seed + r, params.get(a)))
+            done += 1
+            if progress is not None:
+                progress(done / total)
+        ok = [x for x in results if x.success]
+        lengths = np.array([x.length for x in ok])
+        raw = np.array([x.raw_length for x in ok])
+        rows.append(CompareRow(
+            algorithm=a, runs=runs, successes=len(ok),
+            best_length=float(lengths.min()) if len(ok) else math.nan,
+            mean_length=float(lengths.mean()) if len(ok) else math.nan,
+            mean_raw_length=float(raw.mean()) if len(ok) else math.nan,
+            mean_time_s=float(np.mean([x.runtime_s for x in results])),
+            mean_evaluations=float(np.mean([x.evaluations for x in results])),
+        ))
+    return rows

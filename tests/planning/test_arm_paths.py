@@ -1,0 +1,138 @@
+"""Arm paths for pile_driver (paper 000, section 4.5): reach, whole-arm clearance, joint
+B-spline and cylinder lengths; the paper's printed endpoints are out of reach.
+
+Our arm scene: the paper's obstacles are not printed and its endpoints cannot be reached
+(the goal [1800, 1800, 800] mm is 2669 mm from the base, the arm reaches ~1916 mm; the start
+[500, -1000, 0] is inside the hollow near the base axis), so the endpoints are the tool
+positions of two in-limit configurations that differ by 0.9 rad of swing, with one sphere
+(r = 200 mm) just under the straight line between them and one below the start.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kinematics.cylinders import CylinderSet
+from kinematics.fk import fk, fk_frames
+from kinematics.library import builtin_model
+from planning.arm_paths import REACH_TOL, arm_clearance, plan_arm_path, reach
+from planning.scene import Scene
+
+Q_START = np.array([-0.9, 0.5, -0.6, -0.4, 0.0, 0.0])
+Q_GOAL = np.array([0.0, 0.5, -0.6, -0.4, 0.0, 0.0])
+MARGIN = 10.0
+
+
+@pytest.fixture(scope="module")
+def model():
+    return builtin_model("pile_driver")
+
+
+@pytest.fixture(scope="module")
+def endpoints(model):
+    return fk(model, Q_START)[:3, 3], fk(model, Q_GOAL)[:3, 3]
+
+
+@pytest.fixture(scope="module")
+def scene(endpoints):
+    a, b = endpoints
+    mid = (a + b) / 2
+    return Scene.create([[-2500, -2500, -1500], [2500, 2500, 2000]], [
+        {"center": (mid + [0, 0, -230]).tolist(), "radius": 200},
+        {"center": [1200, -1500, -300], "radius": 200},
+    ], safety_margin=MARGIN)
+
+
+@pytest.fixture(scope="module")
+def planned(model, scene, endpoints):
+    return plan_arm_path(model, scene, *endpoints, algorithm="auto", seed=0)
+
+
+def test_the_scene_needs_a_detour(scene, endpoints, planned):
+    # The straight line clears the sphere by 30 mm: the tool could pass, its links not.
+    assert scene.path_clearance(np.vstack(endpoints)) < MARGIN + 60.0
+    assert len(planned.tool.path) > 2
+
+
+def test_every_sample_is_reached_within_limits(model, planned):
+    assert planned.success, planned.message
+    assert np.all(model.within_limits(planned.q))
+    reached = fk(model, planned.q)[:, :3, 3]
+    assert np.max(np.linalg.norm(reached - planned.points, axis=1)) < REACH_TOL
+    assert np.max(np.diff(planned.s)) <= 10.0 + 1e-9  # dense: every 10 mm
+    # One branch: neighbouring samples have neighbouring joints.
+    assert np.max(np.abs(np.diff(planned.q, axis=0))) < 0.1
+
+
+def test_the_whole_arm_keeps_clear(model, scene, planned):
+    C = arm_clearance(model, scene, planned.q)
+    assert C.min() >= MARGIN
+    assert planned.arm_min_clearance == pytest.approx(C.min())
+    # The tool path itself keeps the link radius (60 mm) on top of the margin.
+    assert planned.tool.min_clearance >= MARGIN + 60.0
+    # Link capsules run between consecutive frame origins.
+    F = fk_frames(model, planned.q[:1])[0, :, :3, 3]
+    assert C.shape == (len(planned.q), model.dof, 2) and F.shape == (model.dof + 1, 3)
+
+
+def test_joint_trajectory_is_a_rest_to_rest_bspline(model, scene, planned):
+    traj = planned.trajectory
+    assert traj.method == "bspline5" and traj.duration == pytest.approx(10.0)
+    np.testing.assert_allclose(traj.evaluate(np.array([0.0, traj.duration])),
+                               planned.q[[0, -1]], atol=1e-9)
+    for derivative in (1, 2):
+        np.testing.assert_allclose(traj.evaluate(np.array([0.0, traj.duration]), derivative),
+                                   0.0, atol=1e-9)
+    assert all(v < 1e-6 for k, v in traj.continuity().items() if k != "jerk")
+    t = np.linspace(0, traj.duration, 500)
+    assert np.all(model.within_limits(traj.evaluate(t)))
+    assert arm_clearance(model, scene, traj.evaluate(t)).min() >= MARGIN
+    assert planned.extra["trajectory_tool_deviation"] < 5.0  # mm, within the slack
+
+
+def test_cylinder_lengths_stay_within_stroke(model, planned):
+    cs = CylinderSet.from_model(model)
+    assert set(planned.cylinders) == {"boom", "stick", "four_bar", "swing_left",
+                                      "swing_right"}
+    for name, L in planned.cylinders.items():
+        lo, hi = cs.limits(name)
+        assert L.shape == (len(planned.q),)
+        assert np.all((L >= lo - 1e-9) & (L <= hi + 1e-9)), name
+    assert planned.cylinders_within_stroke is True
+    out = planned.to_dict()
+    assert len(out["joint_path"]) == len(planned.q) and out["trajectory"]["t"][0] == 0.0
+    assert set(out["cylinders"]["lengths"]) == set(planned.cylinders)
+
+
+def test_papers_goal_is_unreachable(model, endpoints):
+    big = Scene.create([[-2500, -2500, -1500], [2500, 2500, 2000]], [
+        {"center": [1400, 700, 500], "radius": 150}])
+    res = plan_arm_path(model, big, endpoints[0], [1800, 1800, 800])
+    assert not res.success
+    assert "unreachable" in res.message and "beyond the arm's reach" in res.message
+    assert f"{reach(model):.0f} mm" in res.message
+    assert 1900 < reach(model) < 1920
+    res = plan_arm_path(model, big, [500, -1000, 0], endpoints[1])
+    assert not res.success and "start" in res.message and "unreachable" in res.message
+
+
+def test_an_arm_collision_is_named(model, endpoints):
+    # A ball on the boom at the start: the tool path is clear, the arm is not.
+    F = fk_frames(model, Q_START)[:, :3, 3]
+    boom_mid = (F[2] + F[3]) / 2
+    scene = Scene.create([[-2500, -2500, -1500], [2500, 2500, 2000]],
+                         [{"center": boom_mid.tolist(), "radius": 80}])
+    res = plan_arm_path(model, scene, *endpoints)
+    assert not res.success
+    assert "arm hits" in res.message and "obstacles[0]" in res.message and "link 2" in \
+        res.message
+
+
+def test_arm_inputs_are_validated(model, scene, endpoints):
+    with pytest.raises(ValueError, match="link_radius must be one number or 6"):
+        plan_arm_path(model, scene, *endpoints, link_radius=[1, 2])
+    with pytest.raises(ValueError, match="duration must be a positive number"):
+        plan_arm_path(model, scene, *endpoints, duration=0)
+    with pytest.raises(ValueError, match="q_start does not put the tool at start"):
+        plan_arm_path(model, scene, *endpoints, q_start=Q_GOAL)

@@ -1,0 +1,219 @@
+"""Exact segment–obstacle distances and scene validation (planning.scene)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize_scalar
+
+from planning.scene import (
+    Scene,
+    segment_box_distance,
+    segment_point_distance,
+    segment_segment_distance,
+)
+
+RNG_SEED = 20240601
+
+
+def brute_min(f, n: int = 1001) -> float:
+    """Minimum of a 1-D function on [0, 1]: a grid, then a bounded polish around the best."""
+    s = np.linspace(0, 1, n)
+    v = np.array([f(x) for x in s])
+    k = int(np.argmin(v))
+    r = minimize_scalar(f, bounds=(s[max(k - 1, 0)], s[min(k + 1, n - 1)]), method="bounded",
+                        options={"xatol": 1e-13})
+    return min(float(r.fun), float(v[k]))
+
+
+def box_sdf(p, lo, hi) -> float:
+    q = np.maximum(lo - p, p - hi)
+    out = np.linalg.norm(np.maximum(q, 0))
+    return out if out > 0 else float(q.max())
+
+
+@pytest.fixture
+def segments():
+    rng = np.random.default_rng(RNG_SEED)
+    P0 = rng.uniform(-3, 3, (60, 3))
+    P1 = rng.uniform(-3, 3, (60, 3))
+    P1[:10] = P0[:10]  # zero-length segments
+    P1[10:20, 1:] = P0[10:20, 1:]  # axis-parallel segments
+    return P0, P1
+
+
+# ---- kernels against brute force ---------------------------------------------------------
+def test_segment_point_matches_brute_force(segments):
+    P0, P1 = segments
+    c = np.array([0.3, -0.2, 0.5])
+    d, t = segment_point_distance(P0, P1, c)
+    for i in range(len(P0)):
+        ref = brute_min(lambda s, i=i: np.linalg.norm(P0[i] + s * (P1[i] - P0[i]) - c))
+        assert d[i] == pytest.approx(ref, abs=1e-9)
+        assert np.linalg.norm(P0[i] + t[i] * (P1[i] - P0[i]) - c) == pytest.approx(d[i])
+
+
+def test_segment_box_is_exact_inside_and_outside(segments):
+    P0, P1 = segments
+    lo, hi = np.array([-1.0, -0.5, -0.7]), np.array([0.8, 1.2, 0.4])
+    d, t = segment_box_distance(P0, P1, lo, hi)
+    assert (d < 0).sum() > 5 and (d > 0).sum() > 5  # both regimes are exercised
+    for i in range(len(P0)):
+        f = lambda s, i=i: box_sdf(P0[i] + s * (P1[i] - P0[i]), lo, hi)  # noqa: E731
+        ref = brute_min(f)  # a numeric search: never below the exact minimum
+        assert ref - 1e-6 <= d[i] <= ref + 1e-12
+        assert f(t[i]) == pytest.approx(d[i], abs=1e-12)  # t is where it happens
+
+
+def test_segment_segment_matches_brute_force(segments):
+    P0, P1 = segments
+    Q0, Q1 = np.array([0.1, 0.2, -1.0]), np.array([0.5, -0.3, 2.0])
+    d, s, t = segment_segment_distance(P0, P1, Q0, Q1)
+    grid = np.linspace(0, 1, 401)
+    for i in range(0, len(P0), 3):
+        p = P0[i] + grid[:, None] * (P1[i] - P0[i])
+        q = Q0 + grid[:, None] * (Q1 - Q0)
+        ref = np.linalg.norm(p[:, None] - q[None], axis=2).min()
+        assert d[i] <= ref + 1e-12 and d[i] == pytest.approx(ref, abs=2e-2)
+        cp = P0[i] + s[i] * (P1[i] - P0[i])
+        cq = Q0 + t[i] * (Q1 - Q0)
+        assert np.linalg.norm(cp - cq) == pytest.approx(d[i])
+
+
+@pytest.mark.parametrize("q0, q1, expected", [
+    ([0.5, 1, 0], [2, 1, 0], 1.0),  # parallel, overlapping
+    ([5, 1, 0], [6, 1, 0], math.hypot(4, 1)),  # parallel, apart
+    ([5, 1, 0], [5, 1, 0], math.hypot(4, 1)),  # a point
+    ([0.5, -1, 0], [0.5, 1, 0], 0.0),  # crossing
+])
+def test_segment_segment_edge_cases(q0, q1, expected):
+    d, _, _ = segment_segment_distance(np.zeros(3), np.array([1.0, 0, 0]), np.array(q0, float),
+                                       np.array(q1, float))
+    assert float(d) == pytest.approx(expected, abs=1e-12)
+
+
+# ---- the scene's clearance ---------------------------------------------------------------
+@pytest.fixture
+def scene():
+    return Scene.create([[-10] * 3, [10] * 3], [
+        {"center": [0, 0, 0], "radius": 1},
+        {"type": "box", "lower": [2, 2, 2], "upper": [3, 3, 3]},
+        {"type": "capsule", "a": [-3, -3, -3], "b": [-3, 3, -3], "radius": 0.5},
+    ], safety_margin=0.1)
+
+
+def test_tangent_segment_touches_sphere_exactly(scene):
+    c = scene.segment_clearance(np.array([[-5.0, 1.0, 0]]), np.array([[5.0, 1.0, 0]]))
+    assert c[0, 0] == pytest.approx(0.0, abs=1e-15)
+    assert scene.path_is_clear([[-5, 1, 0], [5, 1, 0]], margin=0.0)  # touching is clear
+    assert not scene.path_is_clear([[-5, 1, 0], [5, 1, 0]])  # but not with the margin
+
+
+def test_grazing_by_less_than_the_margin_fails(scene):
+    y = 1.0 + 0.1 - 1e-9  # 1e-9 mm short of the margin
+    assert not scene.path_is_clear([[-5, y, 0], [5, y, 0]])
+    assert scene.path_is_clear([[-5, y + 2e-9, 0], [5, y + 2e-9, 0]])
+
+
+def test_inside_is_negative_penetration_depth(scene):
+    c = scene.point_clearance([[0, 0, 0.25], [2.5, 2.5, 2.9], [-3, 0, -3]])
+    assert c[0, 0] == pytest.approx(-0.75)
+    assert c[1, 1] == pytest.approx(-0.1)
+    assert c[2, 2] == pytest.approx(-0.5)
+    # A segment through the sphere's centre is as deep as the radius.
+    assert scene.segment_clearance([[-5, 0, 0]], [[5, 0, 0]])[0, 0] == pytest.approx(-1.0)
+
+
+def test_segment_passing_a_box_edge(scene):
+    # p(s) = (1.5 - s, 4 - s, 2.5) passes the box edge x = 2, y = 3 closest at s = 1/4.
+    a, b = np.array([[1.5, 4.0, 2.5]]), np.array([[0.5, 3.0, 2.5]])
+    assert scene.segment_clearance(a, b)[0, 1] == pytest.approx(0.75 * math.sqrt(2), rel=1e-14)
+
+
+def test_zero_length_segment_is_a_point(scene):
+    p = np.array([[0.0, 0.0, 2.0]])
+    np.testing.assert_allclose(scene.segment_clearance(p, p), scene.point_clearance(p))
+    assert scene.point_clearance(p)[0, 0] == pytest.approx(1.0)
+
+
+def test_vectorised_equals_one_by_one(scene):
+    rng = np.random.default_rng(RNG_SEED)
+    A, B = rng.uniform(-10, 10, (300, 3)), rng.uniform(-10, 10, (300, 3))
+    all_at_once = scene.segment_clearance(A, B)
+    one_by_one = np.vstack([scene.segment_clearance(A[i:i + 1], B[i:i + 1])
+                            for i in range(len(A))])
+    np.testing.assert_array_equal(all_at_once, one_by_one)
+
+
+def test_details_give_the_clearance_gradient(scene):
+    rng = np.random.default_rng(RNG_SEED)
+    A, B = rng.uniform(-10, 10, (40, 3)), rng.uniform(-10, 10, (40, 3))
+    c, t, n = scene.segment_clearance(A, B, details=True)
+    h = 1e-6
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = h
+        g0 = (scene.segment_clearance(A + e, B) - scene.segment_clearance(A - e, B)) / (2 * h)
+        outside = c > 1e-3  # inside a box the clearance has kinks
+        np.testing.assert_allclose(g0[outside], ((1 - t) * n[..., k])[outside], atol=1e-5)
+
+
+def test_surface_points_lie_at_the_offset(scene):
+    for i in range(3):
+        S = scene.surface_points(i, 300, 0.2)
+        c = scene.point_clearance(S)[:, i]
+        assert c.min() >= 0.2 - 1e-12
+        if i != 1:  # boxes use the sharp grown box: corners are farther
+            np.testing.assert_allclose(c, 0.2, atol=1e-12)
+
+
+# ---- validation --------------------------------------------------------------------------
+@pytest.mark.parametrize("obstacles, message", [
+    ([{"center": [0, 0, 0], "radius": 1}, {"center": [1, 1, 1], "radius": 0}],
+     r"obstacles\[1\]\.radius must be positive"),
+    ([{"center": [0, 0, math.nan], "radius": 1}], r"obstacles\[0\]\.center has a NaN"),
+    ([{"center": [0, 0], "radius": 1}], r"obstacles\[0\]\.center must be 3 numbers"),
+    ([{"type": "box", "lower": [0, 0, 0], "upper": [1, 0, 1]}],
+     r"obstacles\[0\]\.upper must exceed"),
+    ([{"type": "capsule", "a": [0, 0, 0], "radius": 1}], r"obstacles\[0\]\.b is required"),
+    ([{"type": "cone", "center": [0, 0, 0]}], r"obstacles\[0\]\.type must be"),
+    ([{"center": [0, 0, 0], "radius": 1, "lower": [0, 0, 0]}],
+     r"obstacles\[0\]\.lower is not a field of a sphere"),
+])
+def test_invalid_obstacles_name_the_field(obstacles, message):
+    with pytest.raises(ValueError, match=message):
+        Scene.create([[-5] * 3, [5] * 3], obstacles)
+
+
+def test_invalid_bounds_and_margin():
+    with pytest.raises(ValueError, match=r"bounds\[1\] must exceed"):
+        Scene.create([[0, 0, 0], [1, 0, 1]])
+    with pytest.raises(ValueError, match="bounds must be"):
+        Scene.create([[0, 0, 0]])
+    with pytest.raises(ValueError, match="safety_margin must be non-negative"):
+        Scene.create([[0] * 3, [1] * 3], safety_margin=-1)
+    with pytest.raises(ValueError, match="safety_margin must be finite"):
+        Scene.create([[0] * 3, [1] * 3], safety_margin=math.nan)
+
+
+def test_endpoints_are_checked(scene):
+    with pytest.raises(ValueError, match=r"start is inside obstacles\[0\]"):
+        scene.check_endpoint([0, 0, 0.5], "start")
+    with pytest.raises(ValueError, match="goal is outside bounds"):
+        scene.check_endpoint([0, 0, 11], "goal")
+    with pytest.raises(ValueError, match=r"start is within safety_margin .* obstacles\[0\]"):
+        scene.check_endpoint([0, 0, 1.05], "start")
+    with pytest.raises(ValueError, match="goal has a NaN"):
+        scene.check_endpoint([0, math.nan, 5], "goal")
+    np.testing.assert_array_equal(scene.check_endpoint([5, 5, 5], "goal"), [5, 5, 5])
+
+
+def test_round_trip_through_dict(scene):
+    again = Scene.from_dict(scene.to_dict())
+    X = np.random.default_rng(0).uniform(-10, 10, (50, 3))
+    np.testing.assert_array_equal(again.point_clearance(X), scene.point_clearance(X))
+    box = Scene.create([[-5] * 3, [5] * 3], [{"type": "box", "center": [0, 0, 0],
+                                              "size": [2, 4, 6]}])
+    np.testing.assert_array_equal(box.obstacles[0].lower, [-1, -2, -3])
