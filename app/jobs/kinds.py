@@ -65,6 +65,7 @@ KIND_MODULES: list[str] = [
     "app.jobs.kinds",
     "app.jobs.model_kinds",
     "app.jobs.path_kinds",
+    "app.jobs.tracking_kinds",
 ]
 
 

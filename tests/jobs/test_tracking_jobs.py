@@ -1,0 +1,95 @@
+"""The ``tracking`` job kind: validation through the API (422s), the job function itself, and
+a tuned run through the job pool once the kind's module is in ``KIND_MODULES``."""
+
+from __future__ import annotations
+
+import pytest
+from fastapi.testclient import TestClient
+
+import app.jobs.kinds
+import app.jobs.tracking_kinds  # noqa: F401 - registers the kind in this process
+from app.config import Settings
+from app.jobs.tracking_kinds import MAX_RUNS, run_tracking
+from app.main import create_app
+from kinematics.library import builtin_model
+
+from .conftest import wait_for
+
+#: Whether worker processes import the kind. The local backend's workers fork from a
+#: forkserver that imported ``app.jobs.kinds`` at its start, so patching ``KIND_MODULES``
+#: in the test process does not reach them: only the shipped list counts.
+REGISTERED_FOR_WORKERS = "app.jobs.tracking_kinds" in app.jobs.kinds.KIND_MODULES
+
+LINE = {"kind": "line", "length": 100.0, "duration": 5.0}
+
+
+@pytest.fixture
+def client(tmp_path, monkeypatch):
+    monkeypatch.setattr(app.jobs.kinds, "KIND_MODULES",
+                        [*app.jobs.kinds.KIND_MODULES, "app.jobs.tracking_kinds"])
+    with TestClient(create_app(Settings(no_viewer=True, data_dir=tmp_path, workers=1))) as c:
+        yield c
+
+
+def submit(client, **params):
+    return client.post("/jobs", json={"kind": "tracking", "params": params})
+
+
+@pytest.mark.parametrize(
+    ("params", "field"),
+    [
+        ({"task": {"kind": "line", "length": -5.0}}, "length"),
+        ({"task": {"kind": "line", "length": 5000.0}}, "length"),
+        ({"task": {"kind": "ellipse", "radii": [150.0, 0.0]}}, "radii"),
+        ({"task": {"kind": "ellipse", "duration": 0.0}}, "duration"),
+        ({"task": {"kind": "circle"}}, "task"),
+        ({"task": LINE, "tune": "hgso", "bounds": {"kp": [-1.0, 20.0]}}, "kp"),
+        ({"task": LINE, "tune": "hgso", "bounds": {"ki": [50.0, 10.0]}}, "bounds"),
+        ({"task": LINE, "controller": {"kind": "pi", "ki": -1.0}}, "ki"),
+        ({"task": LINE, "tune": "hgso", "runs": MAX_RUNS + 1}, "runs"),
+        ({"task": LINE, "runs": 3}, "params"),  # several runs without tuning are equal
+        ({"task": LINE, "tune": "simplex"}, "tune"),
+    ],
+)
+def test_bad_params_are_422_naming_the_field(client, params, field):
+    r = submit(client, **params)
+    assert r.status_code == 422, r.text
+    assert field in str(r.json()["detail"]), r.text
+
+
+def test_unknown_robot_is_404(client):
+    assert submit(client, robot="nope", task=LINE).status_code == 404
+
+
+def test_job_function_default_and_tuned_pi():
+    model = builtin_model("hyper_redundant_9dof").to_dict()
+    base = {"robot": "hyper_redundant_9dof", "task": {**LINE, "direction": [0.48, 0.6, -0.64]},
+            "bounds": {"kp": [0.5, 20.0], "ki": [0.0, 400.0]}, "iterations": 2, "seed": 0,
+            "dt": 0.1, "q0": None, "_model": model}
+    seen: list[float] = []
+    default = run_tracking({**base, "controller": {"kind": "default", "kp": None, "ki": None},
+                            "tune": None, "runs": 1}, lambda f, m: None)
+    tuned = run_tracking({**base, "controller": {"kind": "pi", "kp": None, "ki": None},
+                          "tune": "gwo", "runs": 2}, lambda f, m: seen.append(f))
+    for out in (default, tuned):
+        assert len(out["q"]) == len(out["errors"]) == 51 and len(out["q"][0]) == 9
+        assert out["joint_speed_max"] <= 0.1 + 1e-12
+        assert out["max_error"] == pytest.approx(max(out["errors"]))
+    assert default["max_error"] < tuned["max_error"]
+    assert len(tuned["runs"]) == 2 and [r["seed"] for r in tuned["runs"]] == [0, 1]
+    assert tuned["summary"]["max"] >= tuned["max_error"]
+    assert seen == sorted(seen) and seen[-1] == 1.0
+
+
+@pytest.mark.skipif(not REGISTERED_FOR_WORKERS,
+                    reason="app.jobs.tracking_kinds is not yet in app.jobs.kinds.KIND_MODULES, "
+                    "so the job pool's workers cannot run the kind")
+def test_a_tuned_run_through_the_job_pool(client):
+    r = submit(client, task=LINE, controller={"kind": "pi"}, tune="hgso", iterations=2,
+               runs=2, seed=3)
+    assert r.status_code == 202, r.text
+    job = wait_for(client, r.json()["id"], timeout=120)
+    assert job["status"] == "succeeded", job["error"]
+    out = client.get(f"/jobs/{job['id']}/result").json()
+    assert out["tune"] == "hgso" and len(out["runs"]) == 2
+    assert out["mean_error"] <= out["max_error"] and len(out["kp"]) == 2
