@@ -32,7 +32,7 @@ from hypothesis import HealthCheck, Phase, settings
 from app.config import Settings
 from app.main import create_app
 
-MAX_EXAMPLES = 25
+MAX_EXAMPLES = 12
 SEED = 20240611
 
 CONFIG = schemathesis.Config.from_dict({
