@@ -1,4 +1,5 @@
-"""Motion planning: joint trajectories now; paths, sequencing, multi-arm and tracking next.
+"""Motion planning: joint trajectories, obstacle-avoiding paths, drill-hole sequencing,
+multi-arm motion and trajectory tracking.
 
 Pure numpy/scipy code: it never imports ``app`` or ``web``.
 """

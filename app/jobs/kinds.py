@@ -66,6 +66,7 @@ KIND_MODULES: list[str] = [
     "app.jobs.model_kinds",
     "app.jobs.path_kinds",
     "app.jobs.tracking_kinds",
+    "app.jobs.drilling_kinds",
 ]
 
 

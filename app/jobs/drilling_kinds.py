@@ -1,0 +1,291 @@
+"""Job kinds ``sequence`` (drilling order of a face's holes) and ``multiarm`` (a whole face
+for a multi-arm jumbo: allocation, sequencing and collision-free moves), paper 002.
+
+Holes are validated here, at the API edge, so a bad hole list is a 422 naming the field and
+the hole (``holes[7]: duplicate of holes[2]``, ``holes.left[3]: ... out of reach of the left
+arm``): field validators reuse the messages of ``planning.sequencing.check_holes`` and
+``planning.drilling.allocation``. Neither kind needs a robot (``needs_robot=False``):
+``multiarm`` names a built-in rig.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
+
+from .kinds import JobKind, Params, Progress, register
+
+__all__ = ["SequenceParams", "MultiarmParams", "run_sequence", "run_multiarm"]
+
+Coordinate = Annotated[float, Field(ge=-1e7, le=1e7)]
+Vec3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3, description="[x, y, z] mm")]
+#: Most holes one job takes (sequence) / one face (multiarm).
+MAX_HOLES = 2000
+MAX_FACE_HOLES = 600
+#: Caps on the algorithms' size parameters, so one job cannot run for days.
+PARAM_CAPS = {"iterations": 20_000, "population": 2_000, "ants": 2_000, "kicks": 200_000,
+              "stall": 200_000, "restarts": 1_000, "max_steps": 100_000,
+              "max_iterations": 100_000, "shortcut": 10_000, "escape_steps": 10_000,
+              "max_escapes": 1_000, "stall_window": 100_000}
+Algorithm = Literal["iga", "aco", "aga", "auto"]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+def _capped(params: dict[str, Any] | None) -> dict[str, Any] | None:
+    for key, cap in PARAM_CAPS.items():
+        v = (params or {}).get(key)
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and v > cap:
+            raise ValueError(f"{key}: at most {cap} in a job")
+    return params
+
+
+def _sequencer_params(v, algorithm):
+    if v is None or algorithm is None:
+        return v
+    from planning.sequencing import make_sequencer
+
+    make_sequencer(algorithm, _capped(v))
+    return v
+
+
+# ---- sequence --------------------------------------------------------------------------------
+class SequenceParams(Params):
+    holes: list[Vec3] = Field(min_length=2, max_length=MAX_HOLES,
+                              description="Holes [[x, y, z], ...] mm")
+    start: Vec3 | None = Field(None, description="Where the drill starts (mm); default: the "
+                                                 "first hole, drilled first")
+    algorithm: Algorithm = "auto"
+    seed: int = Field(0, ge=0, le=2**32 - 1)
+    params: dict[str, Any] | None = Field(
+        None, description="Algorithm parameters (defaults: paper 002's), e.g. "
+                          "{\"iterations\": 400} for iga; see planning.sequencing")
+
+    @field_validator("holes")
+    @classmethod
+    def _holes(cls, v):
+        from planning.sequencing import check_holes
+
+        check_holes(v, "holes")
+        return v
+
+    @field_validator("params")
+    @classmethod
+    def _params(cls, v, info: ValidationInfo):
+        return _sequencer_params(v, info.data.get("algorithm"))
+
+
+def run_sequence(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
+    """Drilling order of the holes: an open path from ``start`` (or the first hole)."""
+    from planning.sequencing import sequence_holes
+
+    res = sequence_holes(params["holes"], params["start"], params["algorithm"],
+                         params["seed"], params["params"],
+                         progress=lambda f: progress(0.99 * f, "sequencing"))
+    progress(1.0, "done")
+    return {
+        "order": res.order.tolist(),
+        "length": res.length,
+        "length_m": res.length / 1000.0,
+        "runtime_s": res.runtime_s,
+        "convergence": res.history.tolist(),
+        "algorithm": res.algorithm,
+        "iterations": res.iterations,
+        "evaluations": res.evaluations,
+        "message": res.message,
+        "seed": params["seed"],
+    }
+
+
+register(JobKind("sequence", SequenceParams, run_sequence,
+                 "Drilling order of a face's holes (open path, IGA / ACO / AGA / auto)"))
+
+
+# ---- multiarm --------------------------------------------------------------------------------
+class FaceIn(_Strict):
+    """A generated face (``planning.drilling.patterns.FacePattern``), mm."""
+
+    shape: Literal["horseshoe", "circular"] = "horseshoe"
+    width: float = Field(10_000.0, gt=0, le=50_000)
+    height: float = Field(8_000.0, gt=0, le=50_000)
+    spacing: float = Field(500.0, ge=10, le=10_000, description="Contour hole spacing")
+    face_x: float = Field(9_000.0, ge=-1e6, le=1e6, description="Face distance")
+    center_y: float = Field(0.0, ge=-1e6, le=1e6)
+    floor_z: float = Field(-1_500.0, ge=-1e6, le=1e6)
+
+    @model_validator(mode="after")
+    def _valid(self):
+        from planning.drilling.patterns import FacePattern
+
+        FacePattern(**self.model_dump())
+        return self
+
+
+class MultiarmParams(Params):
+    rig: str = Field("tunnel_jumbo", description="Built-in rig id")
+    holes: dict[str, list[Vec3]] | None = Field(
+        None, description="Holes per arm {\"left\": [[x, y, z], ...], ...} mm (rig frame)")
+    face: FaceIn | None = Field(None, description="Or a generated face, allocated to the arms")
+    planner: Literal["iapf", "rrt"] = "iapf"
+    planner_params: dict[str, Any] | None = None
+    sequencer: Algorithm = "auto"
+    sequencer_params: dict[str, Any] | None = None
+    seed: int = Field(0, ge=0, le=2**32 - 1)
+    balance: Literal["count", "work"] = "count"
+    counts: dict[str, Annotated[int, Field(ge=0, le=MAX_FACE_HOLES)]] | None = None
+    radii: dict[str, Annotated[float, Field(ge=0, le=5000)]] | None = Field(
+        None, description="Envelope radius per link, mm (planning.drilling.envelopes)")
+    standoff: float = Field(300.0, ge=0, le=2000, description="Feed retraction between holes")
+    drill_time_s: float = Field(0.0, ge=0, le=3600)
+    middle_park: Literal["last_hole", "home"] = "last_hole"
+    output_dt: float = Field(0.5, ge=0.01, le=60, description="s between returned samples")
+
+    @field_validator("rig")
+    @classmethod
+    def _rig(cls, v):
+        from kinematics.rigs import BUILTIN_RIG_IDS
+
+        if v not in BUILTIN_RIG_IDS:
+            raise ValueError(f"unknown rig {v!r}; built-in: {', '.join(BUILTIN_RIG_IDS)}")
+        return v
+
+    @field_validator("holes")
+    @classmethod
+    def _holes(cls, v, info: ValidationInfo):
+        if v is None or info.data.get("rig") is None:
+            return v
+        from kinematics.rigs import builtin_rig
+        from planning.drilling.allocation import assign_holes
+
+        if sum(len(h) for h in v.values()) > MAX_FACE_HOLES:
+            raise ValueError(f"at most {MAX_FACE_HOLES} holes in all")
+        assign_holes(builtin_rig(info.data["rig"]), v)
+        return v
+
+    @field_validator("planner_params")
+    @classmethod
+    def _planner_params(cls, v, info: ValidationInfo):
+        if v is None or info.data.get("planner") is None:
+            return v
+        from planning.drilling.multiarm import make_planner
+
+        make_planner(info.data["planner"], _capped(v))
+        return v
+
+    @field_validator("sequencer_params")
+    @classmethod
+    def _seq_params(cls, v, info: ValidationInfo):
+        return _sequencer_params(v, info.data.get("sequencer"))
+
+    @field_validator("radii")
+    @classmethod
+    def _radii(cls, v):
+        from planning.drilling.envelopes import drill_arm_envelope
+
+        drill_arm_envelope(v)
+        return v
+
+    @model_validator(mode="after")
+    def _one_source(self):
+        if (self.holes is None) == (self.face is None):
+            raise ValueError("give exactly one of 'holes' (per arm) and 'face'")
+        if self.face is not None:
+            from kinematics.rigs import builtin_rig
+            from planning.drilling.allocation import allocate_holes
+            from planning.drilling.patterns import face_pattern
+
+            pattern = face_pattern(**self.face.model_dump())
+            if len(pattern.holes) > MAX_FACE_HOLES:
+                raise ValueError(f"face: {len(pattern.holes)} holes, at most "
+                                 f"{MAX_FACE_HOLES}; use a larger spacing")
+            allocate_holes(builtin_rig(self.rig), pattern.holes, balance="count",
+                           counts=self.counts)
+        elif self.counts is not None:
+            raise ValueError("counts: only with 'face' (holes given per arm are allocated)")
+        return self
+
+
+def _window_min(values: np.ndarray, t: np.ndarray, out_t: np.ndarray) -> np.ndarray:
+    """Minimum of ``values (S,)`` over each window ``[out_t[k], out_t[k+1])``."""
+    idx = np.searchsorted(t, out_t)
+    return np.minimum.reduceat(values, np.minimum(idx, len(values) - 1))
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def run_multiarm(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
+    """Plan a whole face; joint trajectories and distances subsampled every ``output_dt``."""
+    from kinematics.rigs import builtin_rig
+    from planning.drilling.allocation import assign_holes
+    from planning.drilling.multiarm import PAPER_ACCELERATION_BOUND, ROTATIONAL_JOINTS, plan_face
+    from planning.drilling.patterns import face_pattern
+
+    rig = builtin_rig(params["rig"])
+    common = dict(planner=params["planner"], planner_params=params["planner_params"],
+                  sequencer=params["sequencer"], sequencer_params=params["sequencer_params"],
+                  seed=params["seed"], radii=params["radii"], standoff=params["standoff"],
+                  drill_time_s=params["drill_time_s"], middle_park=params["middle_park"],
+                  progress=progress)
+    if params["holes"] is not None:
+        plan = plan_face(rig, None, allocation=assign_holes(rig, params["holes"]), **common)
+        labels = [f"{a}[{k}]" for a in plan.allocation.arms
+                  for k in range(len(params["holes"][a]))]
+    else:
+        pattern = face_pattern(**params["face"])
+        plan = plan_face(rig, pattern.holes, balance=params["balance"],
+                         counts=params["counts"], **common)
+        labels = [f"{k}" for k in range(len(pattern.holes))]
+    P = plan.allocation.holes
+    dt = params["output_dt"]
+    out_t = np.arange(0.0, plan.t[-1] + 1e-9, dt) if len(plan.t) else np.zeros(1)
+    pick = np.minimum(np.searchsorted(plan.t, out_t), len(plan.t) - 1)
+    arms = {}
+    for a, ap in plan.arms.items():
+        tl = ap.timeline
+        acc = plan.accelerations[a]
+        arms[a] = {
+            "holes": P[ap.order].tolist(),
+            "hole_ids": [labels[k] for k in ap.order],
+            "q": plan.q[a][pick].tolist(),
+            "move_starts_s": tl.starts.tolist(),
+            "end_s": tl.end,
+            "travel_m": ap.tool_path_m,
+            "sequence_length_m": ap.sequence_length_m,
+            "planner_counts": ap.planner_counts,
+            "peak_acceleration": acc.tolist(),
+            "max_rotational_acceleration": float(acc[list(ROTATIONAL_JOINTS)].max()),
+        }
+    min_distance = {p: _window_min(d, plan.t, out_t).tolist()
+                    for p, d in plan.min_distance.items()}
+    return {
+        "rig": params["rig"],
+        "planner": plan.planner,
+        "success": plan.success,
+        "messages": plan.messages,
+        "notes": plan.extras["notes"],
+        "middle_park": plan.middle_park,
+        "t": out_t.tolist(),
+        "arms": arms,
+        "min_distance": min_distance,
+        "min_distance_overall": {p: _finite(d.min()) for p, d in plan.min_distance.items()},
+        "collisions": plan.total_collisions,
+        "collisions_by_pair": plan.collisions,
+        "travel_m": {a: ap.tool_path_m for a, ap in plan.arms.items()},
+        "total_travel_m": plan.tool_path_m(),
+        "acceleration_bound": PAPER_ACCELERATION_BOUND,
+        "check_dt": float(plan.t[1] - plan.t[0]) if len(plan.t) > 1 else None,
+        "samples": int(len(plan.t)),
+        "runtime_s": plan.runtime_s,
+    }
+
+
+register(JobKind("multiarm", MultiarmParams, run_multiarm,
+                 "Whole-face plan for a multi-arm jumbo: allocation, sequencing, "
+                 "collision-free moves (IAPF or RRT), 10 ms collision check"))

@@ -1,0 +1,247 @@
+"""Multi-arm collision avoidance for the drilling jumbo (paper 002, sections 3.3, 3.4 and 4.2):
+capsule envelopes and distances, the transfer space, IAPF (eqs. 8-13) and RRT-Connect,
+smoothing with the quintic B-spline, and whole-face plans checked every 10 ms."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kinematics.drilling import drill_ik
+from kinematics.rigs import builtin_rig
+from planning.drilling.envelopes import (
+    DRILL_ARM_RADII,
+    capsule_distances,
+    drill_arm_envelope,
+    min_distance,
+)
+from planning.drilling.iapf import IAPF
+from planning.drilling.multiarm import (
+    PAPER_ACCELERATION_BOUND,
+    ROTATIONAL_JOINTS,
+    MotionLimits,
+    make_planner,
+    pair_distances,
+    plan_face,
+    plan_move,
+)
+from planning.drilling.rrt import RRTConnect
+from planning.drilling.space import ArmSpace, Obstacles
+
+FACE_X = 9000.0
+#: Four holes per arm, the middle arm's reaching towards both side arms' strips.
+SMALL_FACE = {
+    "left": [[FACE_X, 2600, 300], [FACE_X, 3400, 1500], [FACE_X, 2200, 3000],
+             [FACE_X, 3800, 4200]],
+    "middle": [[FACE_X, -1100, 800], [FACE_X, 0, 2400], [FACE_X, 1000, 4300],
+               [FACE_X, 1200, 900]],
+    "right": [[FACE_X, -2600, 500], [FACE_X, -3500, 2000], [FACE_X, -2200, 3600],
+              [FACE_X, -3900, 200]],
+}
+
+
+@pytest.fixture(scope="module")
+def rig():
+    return builtin_rig("tunnel_jumbo")
+
+
+@pytest.fixture(scope="module")
+def env():
+    return drill_arm_envelope()
+
+
+@pytest.fixture(scope="module")
+def blocked(rig, env):
+    """The left arm moving from a hole below the parked middle arm's feed to one above it:
+    the straight joint-space line goes through the middle arm."""
+    q_mid = drill_ik(rig.arms["middle"], [FACE_X, 1400, 3000])[0].q
+    obs = Obstacles.of_arms({"middle": (rig.arms["middle"], q_mid)}, env)
+    space = ArmSpace(rig.arms["left"], env, FACE_X)
+    qa = drill_ik(rig.arms["left"], [FACE_X, 1500, 1500])[0].q
+    qb = drill_ik(rig.arms["left"], [FACE_X, 1500, 4500])[0].q
+    return space, obs, qa, qb
+
+
+@pytest.fixture(scope="module")
+def small_plan(rig):
+    from planning.drilling.allocation import assign_holes
+
+    return plan_face(rig, None, allocation=assign_holes(rig, SMALL_FACE), seed=1)
+
+
+# ---- envelopes -------------------------------------------------------------------------------
+def test_capsule_distance_matches_dense_sampling():
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(40, 3, 2, 3)) * 1000
+    B = rng.normal(size=(40, 2, 2, 3)) * 1000
+    ra, rb = np.array([100.0, 200, 50]), np.array([80.0, 10])
+    d = capsule_distances(A, ra, B, rb)
+    s = np.linspace(0, 1, 401)
+    for k in range(5):
+        for i in range(3):
+            for j in range(2):
+                P = A[k, i, 0] + s[:, None] * (A[k, i, 1] - A[k, i, 0])
+                Q = B[k, j, 0] + s[:, None] * (B[k, j, 1] - B[k, j, 0])
+                sampled = np.linalg.norm(P[:, None] - Q[None], axis=2).min() - ra[i] - rb[j]
+                assert d[k, i, j] <= sampled + 1e-9
+                assert d[k, i, j] == pytest.approx(sampled, abs=15.0)
+    np.testing.assert_allclose(min_distance(A, ra, B, rb, chunk=7), d.min(axis=(1, 2)))
+
+
+def test_envelope_radii_are_parameters():
+    env = drill_arm_envelope({"feed": 300})
+    assert dict(zip(env.names, env.radii))["feed"] == 300
+    assert dict(zip(env.names, env.radii))["boom"] == DRILL_ARM_RADII["boom"]
+    with pytest.raises(ValueError, match="radii.tail"):
+        drill_arm_envelope({"tail": 10})
+    with pytest.raises(ValueError, match="radii.boom"):
+        drill_arm_envelope({"boom": -1})
+
+
+# ---- the transfer space ----------------------------------------------------------------------
+def test_transfer_space_keeps_the_drilling_posture(rig, env):
+    space = ArmSpace(rig.arms["right"], env, FACE_X)
+    holes = np.array(SMALL_FACE["right"])
+    q = np.array([r.q for r in drill_ik(rig.arms["right"], holes)])
+    np.testing.assert_allclose(space.full_q(q[:, :3]), q, atol=1e-6)  # rule + feed 4022
+    np.testing.assert_allclose(space.tip_yz(q[:, :3]), holes[:, 1:], atol=1e-6)
+    np.testing.assert_allclose(space.d7_face(q[:, :3], 300.0), q[:, 6] - 300.0, atol=1e-6)
+    u = space.to_u(q[:, :3])
+    assert np.all((u >= 0) & (u <= 1))
+    np.testing.assert_allclose(space.from_u(u), q[:, :3])
+    assert np.all(np.isinf(space.clearance(q[:, :3], Obstacles.none())))
+
+
+# ---- IAPF (eqs. 8-13) ------------------------------------------------------------------------
+def test_iapf_attraction_is_per_joint_with_a_threshold(blocked):
+    space = blocked[0]
+    iapf = IAPF(goal_threshold=0.1, attraction_gain=2.0)
+    u, ug = np.array([0.5, 0.5, 0.5]), np.array([0.55, 0.2, 0.9])
+    F = iapf.forces(space, Obstacles.none(), u, ug, np.full(6, np.inf))
+    # eq. 9: delta (q_goal - q) inside the threshold, delta d* sign(...) beyond it
+    np.testing.assert_allclose(F, [2.0 * 0.05, -2.0 * 0.1, 2.0 * 0.1])
+
+
+def test_iapf_repulsion_vanishes_at_the_goal(blocked):
+    """Eq. 13: F_rep1 is proportional to the distance to the goal, F_rep2 points at it; so
+    next to an obstacle the force across the goal direction dies out at the goal."""
+    space, obs, qa, _ = blocked
+    iapf = IAPF()
+    u = space.to_u(qa[None, :3])[0]
+    c = space.link_clearance(qa[None, :3], obs)[0]
+    assert c.min() < iapf.influence  # the obstacle acts here
+    across = []
+    for rho in (0.1, 0.01, 0.001):
+        ug = u + rho * np.array([0.0, 0.6, 0.8])
+        F = iapf.forces(space, obs, u, ug, c) - iapf.forces(space, Obstacles.none(), u, ug,
+                                                            np.full(6, np.inf))
+        w = (ug - u) / rho
+        across.append(np.linalg.norm(F - (F @ w) * w))
+        assert F @ w > -np.linalg.norm(F)  # never straight back from the goal
+    assert across[0] > 0
+    np.testing.assert_allclose(np.array(across[1:]) / across[0], [0.1, 0.01], rtol=0.05)
+
+
+@pytest.mark.parametrize("planner", [IAPF(), RRTConnect()])
+def test_planners_go_around_the_parked_middle_arm(blocked, planner):
+    space, obs, qa, qb = blocked
+    line = np.linspace(qa[:3], qb[:3], 60)
+    assert space.clearance(line, obs).min() < -300  # the straight move would hit it
+    mv = plan_move(space, obs, qa, qb, planner, np.random.default_rng(0),
+                   limits=MotionLimits(), standoff=300.0)
+    assert mv.success, mv.message
+    assert mv.path.min_clearance >= planner.safety - 1e-9
+    np.testing.assert_allclose(mv.path.q[0], qa[:3])
+    np.testing.assert_allclose(mv.path.q[-1], qb[:3])
+    t = np.arange(0.0, mv.duration, 0.01)
+    q = mv.evaluate(t)
+    assert space.clearance(q[:, :3], obs).min() > 0  # clear at every 10 ms sample
+    np.testing.assert_allclose(q[0], qa, atol=1e-9)
+    np.testing.assert_allclose(mv.evaluate([mv.duration])[0], qb, atol=1e-6)
+    # the compensation joints follow the rule: the drill stays perpendicular to the face
+    np.testing.assert_allclose(q[:, 4], -q[:, 1], atol=1e-12)
+    np.testing.assert_allclose(q[:, 5], np.pi / 2 - q[:, 0], atol=1e-12)
+    cont = mv.traj.continuity()  # quintic B-spline: C4 at the knots
+    assert cont["velocity"] < 1e-6 and cont["acceleration"] < 1e-6
+    assert mv.traj.peaks(2)[0][:2].max() <= PAPER_ACCELERATION_BOUND
+
+
+def test_an_unreachable_goal_is_a_failure_not_a_path(blocked, rig, env):
+    space, obs, qa, _ = blocked
+    q_hit = drill_ik(rig.arms["left"], [FACE_X, 1450, 3000])[0].q  # inside the middle feed
+    for planner in (IAPF(), RRTConnect(max_iterations=50)):
+        mv = plan_move(space, obs, qa, q_hit, planner, np.random.default_rng(0),
+                       limits=MotionLimits(), standoff=300.0)
+        assert not mv.success and "collides" in mv.message
+    with pytest.raises(ValueError, match="planner_params.lam"):
+        make_planner("iapf", {"lam": 1})
+    with pytest.raises(ValueError, match="planner"):
+        make_planner("prm")
+
+
+# ---- whole faces -----------------------------------------------------------------------------
+def test_small_face_plan_is_collision_free(rig, small_plan, capsys):
+    fp = small_plan
+    assert fp.success, fp.messages
+    assert fp.total_collisions == 0
+    assert set(fp.min_distance) == {"left-middle", "left-right", "middle-right"}
+    assert all(d.min() > 0 for d in fp.min_distance.values())
+    dt = np.diff(fp.t)
+    assert dt.max() <= 0.01 + 1e-9  # checked every 10 ms
+    for a, ap in fp.arms.items():
+        assert len(ap.order) == 4 and ap.planner_counts.get("iapf", 0) >= 4
+        assert ap.tool_path_m >= ap.sequence_length_m * 0.98
+        # each move ends drilling the next hole of the order
+        ends = np.array([mv.q_goal for mv in ap.timeline.moves[:4]])
+        q_holes = [r.q for r in drill_ik(rig.arms[a], fp.allocation.holes[ap.order])]
+        np.testing.assert_allclose(ends, q_holes, atol=1e-6)
+        assert fp.accelerations[a][list(ROTATIONAL_JOINTS)].max() <= PAPER_ACCELERATION_BOUND
+    # middle first; the side arms start when it has finished and parked
+    mid_end = fp.arms["middle"].timeline.end
+    assert fp.arms["left"].timeline.starts[0] == pytest.approx(mid_end)
+    with capsys.disabled():
+        print("\nsmall face, IAPF: min distance " + ", ".join(
+            f"{p} {d.min():.0f} mm" for p, d in fp.min_distance.items())
+            + f"; tool path {fp.tool_path_m():.2f} m; middle parks: {fp.middle_park}")
+
+
+def test_rrt_face_plan_and_reproducibility(rig, small_plan):
+    from planning.drilling.allocation import assign_holes
+
+    alloc = assign_holes(rig, SMALL_FACE)
+    rrt = plan_face(rig, None, allocation=alloc, planner="rrt", seed=1)
+    assert rrt.success and rrt.total_collisions == 0, rrt.messages
+    again = plan_face(rig, None, allocation=alloc, planner="rrt", seed=1)
+    for a in rrt.q:
+        np.testing.assert_array_equal(rrt.q[a], again.q[a])
+    # RRT's raw paths wander; IAPF's follow the attraction
+    assert rrt.tool_path_m() >= small_plan.tool_path_m() - 1e-6
+
+
+def test_a_colliding_goal_makes_the_plan_fail(rig):
+    """A left-arm hole right on the middle arm's parked feed: reported, never returned as a
+    success."""
+    from planning.drilling.allocation import assign_holes
+
+    alloc = assign_holes(rig, {"left": [[FACE_X, 3000, 1000], [FACE_X, 1000, 614]]})
+    fp = plan_face(rig, None, allocation=alloc)
+    assert not fp.success
+    assert any("collides" in m for m in fp.messages), fp.messages
+
+
+def test_the_final_check_sees_overlaps(rig, env):
+    """Two arms driven into each other (no planner): the 10 ms check finds the overlap."""
+    q_mid = drill_ik(rig.arms["middle"], [FACE_X, 1400, 3000])[0].q
+    qa = drill_ik(rig.arms["left"], [FACE_X, 1500, 1500])[0].q
+    qb = drill_ik(rig.arms["left"], [FACE_X, 1500, 4500])[0].q
+    s = np.linspace(0, 1, 300)[:, None]
+    q_left = qa + s * (qb - qa)
+    q = {"left": q_left, "middle": np.repeat(q_mid[None], 300, axis=0),
+         "right": np.repeat(drill_ik(rig.arms["right"], [FACE_X, -3000, 1000])[0].q[None],
+                            300, axis=0)}
+    moving = {"left": np.ones(300, bool), "middle": np.zeros(300, bool),
+              "right": np.zeros(300, bool)}
+    d = pair_distances(rig, env, q, moving)
+    assert d["left-middle"].min() < -300 and d["left-middle"][0] > 0
+    np.testing.assert_allclose(d["left-middle"], pair_distances(rig, env, q)["left-middle"])
+    assert np.all(d["middle-right"] == d["middle-right"][0])
