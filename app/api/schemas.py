@@ -190,8 +190,10 @@ class DrillIKRequest(Body):
     holes: list[Point3] = Field(
         min_length=1, description="Hole positions [x, y, z] on the face, mm"
     )
-    d7: float = Field(4022.0, description="Feed joint value, mm (paper 002: 4022)")
-    roll: float = Field(0.0, description="Roll joint value, rad")
+    d7: float = Field(4022.0, ge=-1e6, le=1e6,
+                      description="Feed joint value, mm (paper 002: 4022)")
+    roll: float = Field(0.0, ge=-4 * 3.141592653589793, le=4 * 3.141592653589793,
+                        description="Roll joint value, rad (within the roll joint's limits)")
 
 
 class ErrorItem(BaseModel):

@@ -38,6 +38,8 @@ router = APIRouter(prefix="/robots/{robot_id}", tags=["kinematics"])
 
 #: Largest |joint value| accepted (rad or mm): far beyond any joint, short of float trouble.
 MAX_JOINT_VALUE = 1e6
+#: Most holes in one drill-ik call (413 above); a face has a few hundred.
+MAX_DRILL_HOLES = 2_000
 
 
 def joint_rows(model: RobotModel, q: list, field: str = "q") -> tuple[np.ndarray, bool]:
@@ -188,15 +190,21 @@ def drilling_ik(robot: RobotDep, body: DrillIKRequest) -> JSONResponse:
     """Drilling arms: joint values that put the drill tip on each hole, drilling
     perpendicular to the face (the base x axis), feed joint fixed."""
     holes = np.asarray(body.holes, dtype=float)
-    if len(holes) > MAX_IK_POSES:
-        raise too_large(["holes"], f"at most {MAX_IK_POSES} holes per call, got {len(holes)}")
+    if len(holes) > MAX_DRILL_HOLES:
+        raise too_large(["holes"], f"at most {MAX_DRILL_HOLES} holes per call, got "
+                        f"{len(holes)}")
     try:
         check_drilling_structure(robot)
     except ValueError as exc:
         raise http_error(422, ["path", "robot_id"], f"not a drilling arm: {exc}",
                          "value_error") from None
+    roll = robot.joints[3]
+    if not roll.lower <= body.roll <= roll.upper:
+        raise invalid(["roll"], f"outside the {roll.name} joint's limits "
+                      f"[{roll.lower:.4g}, {roll.upper:.4g}] rad")
     try:
         results = drill_ik(robot, holes, d7=body.d7, roll=body.roll)
     except ValueError as exc:
-        raise invalid(["holes"], str(exc)) from None
+        field = str(exc).split(":", 1)[0]
+        raise invalid([field if field in ("d7", "roll") else "holes"], str(exc)) from None
     return JSONResponse({"results": [_ik_json(r) for r in results]})
