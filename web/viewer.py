@@ -41,7 +41,9 @@ class Viewer:
         server.scene.add_grid("/ground", width=6.0, height=6.0, cell_size=0.25, section_size=1.0)
 
     @classmethod
-    def start(cls, host: str, port: int) -> Viewer:
+    def start(cls, host: str, port: int, state=None) -> Viewer:
+        """A viser server on ``host:port`` (port 0: any free port). ``state`` is the
+        service's app state (robots, jobs), kept for what the viewer shows."""
         import viser
 
         return cls(viser.ViserServer(host=host, port=port, label="kinoplan", verbose=False))
