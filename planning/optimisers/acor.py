@@ -32,13 +32,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import Evaluator, OptimResult, Problem, ProgressFn, run_with_budget
+from .base import Evaluator, Optimiser
 
 __all__ = ["ACOR"]
 
 
 @dataclass(frozen=True)
-class ACOR:
+class ACOR(Optimiser):
     """ACO_R with paper 003 Table 2's ACO parameters mapped as in the module docstring."""
 
     archive_size: int = 50  # k (Table 2's population)
@@ -75,12 +75,6 @@ class ACOR:
         """ACO_R's deviation-distance ratio, ``= rho``."""
         return self.rho
 
-    def minimize(self, problem: Problem, rng: np.random.Generator, *,
-                 max_evaluations: int | None = None,
-                 progress: ProgressFn | None = None) -> OptimResult:
-        """Minimise ``problem`` (see ``base``); seeded by ``rng``."""
-        return run_with_budget(problem, lambda ev: self._run(ev, rng),
-                               max_evaluations=max_evaluations, progress=progress)
 
     def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
         pb = ev.problem

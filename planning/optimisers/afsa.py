@@ -25,13 +25,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import Evaluator, OptimResult, Problem, ProgressFn, run_with_budget
+from .base import Evaluator, Optimiser
 
 __all__ = ["FishSwarm"]
 
 
 @dataclass(frozen=True)
-class FishSwarm:
+class FishSwarm(Optimiser):
     """Artificial fish swarm; defaults = paper 000."""
 
     n_fish: int = 50
@@ -53,12 +53,6 @@ class FishSwarm:
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive")
 
-    def minimize(self, problem: Problem, rng: np.random.Generator, *,
-                 max_evaluations: int | None = None,
-                 progress: ProgressFn | None = None) -> OptimResult:
-        """Minimise ``problem`` (see ``base``); seeded by ``rng``."""
-        return run_with_budget(problem, lambda ev: self._run(ev, rng),
-                               max_evaluations=max_evaluations, progress=progress)
 
     def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
         pb = ev.problem

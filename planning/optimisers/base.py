@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["Problem", "OptimResult", "ProgressFn", "BudgetExhausted", "Evaluator",
-           "run_with_budget"]
+           "Optimiser", "run_with_budget"]
 
 ProgressFn = Callable[[float], None]
 
@@ -135,3 +135,15 @@ def run_with_budget(
         x=ev.best_x, fun=ev.best_f, evaluations=ev.evaluations, iterations=len(ev.history),
         history=np.array(ev.history), runtime_s=time.perf_counter() - t0, message=message,
     )
+
+
+class Optimiser:
+    """Base of the optimiser classes: ``minimize`` runs the subclass's ``_run(evaluator,
+    rng)`` under the budget (``_run`` returns an optional message)."""
+
+    def minimize(self, problem: Problem, rng: np.random.Generator, *,
+                 max_evaluations: int | None = None,
+                 progress: ProgressFn | None = None) -> OptimResult:
+        """Minimise ``problem`` with ``rng`` as the only source of randomness."""
+        return run_with_budget(problem, lambda ev: self._run(ev, rng),  # type: ignore[attr-defined]
+                               max_evaluations=max_evaluations, progress=progress)

@@ -22,13 +22,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import Evaluator, OptimResult, Problem, ProgressFn, run_with_budget
+from .base import Evaluator, Optimiser
 
 __all__ = ["GeneticAlgorithm"]
 
 
 @dataclass(frozen=True)
-class GeneticAlgorithm:
+class GeneticAlgorithm(Optimiser):
     """Real-coded GA; every rate is a probability in [0, 1]."""
 
     population: int = 50
@@ -61,12 +61,6 @@ class GeneticAlgorithm:
         """Paper 000's path-planning GA (section 4.3)."""
         return cls(population=5, crossover=0.8, selection=0.5, mutation=0.2, iterations=100)
 
-    def minimize(self, problem: Problem, rng: np.random.Generator, *,
-                 max_evaluations: int | None = None,
-                 progress: ProgressFn | None = None) -> OptimResult:
-        """Minimise ``problem`` (see ``base``); seeded by ``rng``."""
-        return run_with_budget(problem, lambda ev: self._run(ev, rng),
-                               max_evaluations=max_evaluations, progress=progress)
 
     def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
         pb = ev.problem

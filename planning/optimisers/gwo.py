@@ -18,13 +18,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import Evaluator, OptimResult, Problem, ProgressFn, run_with_budget
+from .base import Evaluator, Optimiser
 
 __all__ = ["GWO"]
 
 
 @dataclass(frozen=True)
-class GWO:
+class GWO(Optimiser):
     """Grey wolf optimiser; defaults = paper 003 Table 2."""
 
     n_wolves: int = 50  # N
@@ -42,13 +42,6 @@ class GWO:
         if not self.a_start >= self.a_end >= 0:
             raise ValueError("a_start, a_end: need a_start >= a_end >= 0")
 
-    def minimize(self, problem: Problem, rng: np.random.Generator, *,
-                 max_evaluations: int | None = None,
-                 progress: ProgressFn | None = None) -> OptimResult:
-        """Minimise ``problem`` (see ``base``); seeded by ``rng``. The ``a`` schedule spans
-        ``iterations``, or fewer when ``max_evaluations`` allows fewer."""
-        return run_with_budget(problem, lambda ev: self._run(ev, rng),
-                               max_evaluations=max_evaluations, progress=progress)
 
     def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
         pb = ev.problem

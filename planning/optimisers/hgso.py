@@ -35,13 +35,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import Evaluator, OptimResult, Problem, ProgressFn, run_with_budget
+from .base import Evaluator, Optimiser
 
 __all__ = ["HGSO"]
 
 
 @dataclass(frozen=True)
-class HGSO:
+class HGSO(Optimiser):
     """Henry gas solubility optimisation; defaults = paper 003 Table 2 and section 3.1."""
 
     n_gases: int = 50  # N
@@ -73,13 +73,6 @@ class HGSO:
         if not 0 <= self.c1 <= self.c2 < 1:
             raise ValueError("c1, c2: need 0 <= c1 <= c2 < 1")
 
-    def minimize(self, problem: Problem, rng: np.random.Generator, *,
-                 max_evaluations: int | None = None,
-                 progress: ProgressFn | None = None) -> OptimResult:
-        """Minimise ``problem`` (see ``base``); seeded by ``rng``. The temperature schedule
-        spans ``iterations``, or fewer when ``max_evaluations`` allows fewer."""
-        return run_with_budget(problem, lambda ev: self._run(ev, rng),
-                               max_evaluations=max_evaluations, progress=progress)
 
     def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
         pb = ev.problem

@@ -17,13 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import Evaluator, OptimResult, Problem, ProgressFn, run_with_budget
+from .base import Evaluator, Optimiser
 
 __all__ = ["PSO"]
 
 
 @dataclass(frozen=True)
-class PSO:
+class PSO(Optimiser):
     """Linearly-decreasing-inertia PSO; defaults = paper 003 Table 2."""
 
     n_particles: int = 50  # N
@@ -47,13 +47,6 @@ class PSO:
         if not 0 < self.v_max_fraction <= 1:
             raise ValueError("v_max_fraction: must be in (0, 1]")
 
-    def minimize(self, problem: Problem, rng: np.random.Generator, *,
-                 max_evaluations: int | None = None,
-                 progress: ProgressFn | None = None) -> OptimResult:
-        """Minimise ``problem`` (see ``base``); seeded by ``rng``. The inertia schedule spans
-        ``iterations``, or fewer when ``max_evaluations`` allows fewer."""
-        return run_with_budget(problem, lambda ev: self._run(ev, rng),
-                               max_evaluations=max_evaluations, progress=progress)
 
     def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
         pb = ev.problem

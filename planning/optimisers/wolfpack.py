@@ -43,13 +43,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import Evaluator, OptimResult, Problem, ProgressFn, run_with_budget
+from .base import Evaluator, Optimiser
 
 __all__ = ["WolfPack"]
 
 
 @dataclass(frozen=True)
-class WolfPack:
+class WolfPack(Optimiser):
     """Basic wolf pack algorithm; defaults = paper 000 Table 2."""
 
     n_wolves: int = 100  # N
@@ -99,12 +99,6 @@ class WolfPack:
         return X + lam * 0.5 * np.abs(lead - X)
 
     # ---- the loop ---------------------------------------------------------------------------
-    def minimize(self, problem: Problem, rng: np.random.Generator, *,
-                 max_evaluations: int | None = None,
-                 progress: ProgressFn | None = None) -> OptimResult:
-        """Minimise ``problem`` (see ``base``); seeded by ``rng``."""
-        return run_with_budget(problem, lambda ev: self._run(ev, rng),
-                               max_evaluations=max_evaluations, progress=progress)
 
     def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
         pb = ev.problem
