@@ -47,11 +47,14 @@ def main(argv: list[str] | None = None) -> int:
     if not settings.no_viewer:
         from web.viewer import Viewer
 
-        api.state.viewer = Viewer.start(settings.host, settings.viewer_port)
-        first = api.state.registry.all()[0]
-        api.state.viewer.show_robot(first, first.mid_configuration())
-        log.info("3D viewer on http://%s:%d", settings.host, settings.viewer_port)
-    uvicorn.run(api, host=settings.host, port=settings.port, log_level="info")
+        # Same process as the API: the viewer sees the same robots and jobs (app.state).
+        api.state.viewer = Viewer.start(settings.host, settings.viewer_port, api.state)
+        log.info("3D viewer on http://%s:%d", settings.host, api.state.viewer.port)
+    try:
+        uvicorn.run(api, host=settings.host, port=settings.port, log_level="info")
+    finally:
+        if api.state.viewer is not None:
+            api.state.viewer.stop()
     return 0
 
 

@@ -1,72 +1,577 @@
-"""The 3D viewer: a viser scene showing robots in the configurations the API is told to show.
+"""The 3D viewer: a viser server in the service's process, showing its robots and jobs.
 
-The scene is in metres (viser's camera defaults suit metres); the API's millimetres are
-divided by 1000 at this edge only.
+``Viewer.start(host, port, state)`` takes the application's ``state`` (its ``registry`` of
+robots and rigs and its ``jobs`` manager), so the viewer sees exactly what the REST API sees.
+
+What a browser gets (http://host:port):
+
+* the robot picked in the dropdown (every built-in and custom robot, refreshed as robots are
+  added, and the rigs: ``tunnel_jumbo`` draws its three arms), drawn by ``web.scene``;
+* joint sliders (degrees, mm for prismatic joints) that move the arm live, and the cylinder
+  lengths and strokes of hydraulic arms;
+* a transform gizmo at the tool: dragging it solves IK from the current configuration and the
+  arm follows; where IK fails the panel says why and the arm keeps its last good pose;
+* a workspace button that runs a ``workspace`` job, shows its progress, then its point cloud
+  coloured by height with the extents;
+* finished jobs shown by ``POST /viewer/show {"job": id}`` (``web.results``), with a time
+  slider and play/pause when the plan moves arms.
+
+Several tabs may watch at once: the scene and the panel are shared (all tabs see the same
+robot and plan, and any tab may drive them); each tab's camera is its own. Every change of
+state happens under one lock: viser runs GUI callbacks on a thread pool, the REST routes on
+uvicorn's threads, and the viewer has its own threads for IK, playback and job polling.
 """
 
 from __future__ import annotations
 
+import json
+import logging
 import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
 
-from kinematics.fk import fk_frames
+from kinematics.ik import solve_ik
+from kinematics.ik.result import IKResult
 from kinematics.model import RobotModel
 
-__all__ = ["Viewer", "MM_TO_M", "wxyz_from_matrix"]
+from .gui import ControlPanel
+from .results import DRAWABLE_KINDS, Plan, plan_from_result
+from .scene import (
+    MM_TO_M,
+    RobotDrawing,
+    RobotNodes,
+    draw_plan,
+    reach_m,
+    wxyz_from_matrix,
+)
 
-MM_TO_M = 1e-3
-LINK_COLOR = (230, 120, 20)
-JOINT_COLOR = (60, 60, 70)
+__all__ = ["Viewer", "JobNotReady", "MM_TO_M", "wxyz_from_matrix", "ROBOT_ROOT", "PLAN_ROOT"]
+
+log = logging.getLogger(__name__)
+
+ROBOT_ROOT = "/robot"
+PLAN_ROOT = "/plan"
+IK_TARGET = "/ik/target"
+#: Period (s) of the viewer's own loop: playback frames and job polling.
+TICK_S = 1.0 / 30.0
+#: How often (s) the robot list is compared with the registry.
+ROBOTS_REFRESH_S = 1.0
+#: How often (s) a running workspace job is polled.
+POLL_S = 0.2
 
 
-def wxyz_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a rotation matrix ``(3, 3)``."""
-    R = np.asarray(R, dtype=float)
-    w = np.sqrt(max(0.0, 1.0 + R[0, 0] + R[1, 1] + R[2, 2])) / 2.0
-    x = np.copysign(np.sqrt(max(0.0, 1.0 + R[0, 0] - R[1, 1] - R[2, 2])) / 2.0, R[2, 1] - R[1, 2])
-    y = np.copysign(np.sqrt(max(0.0, 1.0 - R[0, 0] + R[1, 1] - R[2, 2])) / 2.0, R[0, 2] - R[2, 0])
-    z = np.copysign(np.sqrt(max(0.0, 1.0 - R[0, 0] - R[1, 1] + R[2, 2])) / 2.0, R[1, 0] - R[0, 1])
-    q = np.array([w, x, y, z])
-    return q / np.linalg.norm(q)
+class JobNotReady(RuntimeError):
+    """The job exists but has not succeeded; ``status`` says where it is."""
+
+    def __init__(self, job_id: str, status: str, error: str | None = None) -> None:
+        why = f": {error}" if error else ""
+        super().__init__(f"job {job_id} is {status}; only a succeeded job can be shown{why}")
+        self.status = status
+
+
+class ServiceState(Protocol):
+    """What the viewer needs of the application's state."""
+
+    registry: Any  # app.registry.RobotRegistry: ids(), get(id), rigs
+    jobs: Any  # app.jobs.manager.JobManager: submit(kind, params), get(id), result(id)
+
+
+@dataclass
+class _Arm:
+    """One drawn arm: its model, configuration and nodes."""
+
+    key: str
+    model: RobotModel
+    q: np.ndarray
+    nodes: RobotNodes
 
 
 class Viewer:
-    """A running viser server and what it currently shows."""
+    """A running viser server and what it shows. Thread-safe."""
 
-    def __init__(self, server) -> None:
+    def __init__(self, server: Any, state: ServiceState, *, environment_map: bool = True,
+                 ) -> None:
         self.server = server
-        self._lock = threading.Lock()
+        self.registry = state.registry
+        self.jobs = state.jobs
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self._key: str = ""
+        self._arms: dict[str, _Arm] = {}
+        self._active: str = ""
+        self._generation = 0  # bumped whenever the robot changes (stale IK answers drop)
+        self._plan: Plan | None = None
+        self._plan_handles: dict[str, Any] = {}
+        self._time = 0.0
+        self._playing = False
+        self._ik_pending: tuple[np.ndarray, bool] | None = None
+        self._ik_wake = threading.Event()
+        self._ik_last: IKResult | None = None
+        self._workspace_job: str | None = None
+        self._options: tuple[str, ...] = ()
         self.current: dict | None = None
-        server.scene.add_grid("/ground", width=6.0, height=6.0, cell_size=0.25, section_size=1.0)
+
+        scene = server.scene
+        scene.set_up_direction("+z")
+        if not environment_map:
+            scene.configure_environment_map(None)
+        self._grid = scene.add_grid("/ground", width=4.0, height=4.0, cell_size=0.25,
+                                    section_size=1.0)
+        self._options = self._robot_options()
+        first = self._options[0]
+        self.gui = ControlPanel(server.gui, self._options, first)
+        self.gizmo = scene.add_transform_controls(IK_TARGET, scale=0.3, depth_test=False)
+        self._wire()
+        self.select(first)
+        server.on_client_connect(self._on_connect)
+        self._threads = [
+            threading.Thread(target=self._tick_loop, name="viewer-tick", daemon=True),
+            threading.Thread(target=self._ik_loop, name="viewer-ik", daemon=True),
+        ]
+        for t in self._threads:
+            t.start()
 
     @classmethod
-    def start(cls, host: str, port: int, state=None) -> Viewer:
-        """A viser server on ``host:port`` (port 0: any free port). ``state`` is the
-        service's app state (robots, jobs), kept for what the viewer shows."""
+    def start(cls, host: str, port: int, state: ServiceState, *, environment_map: bool = True,
+              ) -> Viewer:
+        """Start a viser server on ``host:port`` (0: any free port, see ``port``)."""
         import viser
 
-        return cls(viser.ViserServer(host=host, port=port, label="kinoplan", verbose=False))
+        # No label: the panel title then shows the connection state ("Connected").
+        server = viser.ViserServer(host=host, port=port, verbose=False)
+        return cls(server, state, environment_map=environment_map)
 
-    def show_robot(self, model: RobotModel, q: np.ndarray) -> None:
-        """Draw ``model`` at configuration ``q (dof,)``: links, joints and the tool frame."""
-        frames = fk_frames(model, np.asarray(q, dtype=float))
-        origins = frames[:, :3, 3] * MM_TO_M
-        segments = np.stack([origins[:-1], origins[1:]], axis=1)
-        scene = self.server.scene
-        with self._lock:
-            scene.add_line_segments(
-                "/robot/links", segments, LINK_COLOR, thickness=0.03, thickness_units="world"
-            )
-            for i, p in enumerate(origins[:-1]):
-                scene.add_icosphere(f"/robot/joint_{i}", radius=0.03, color=JOINT_COLOR,
-                                    position=tuple(p))
-            T_tool = frames[-1]
-            scene.add_frame(
-                "/robot/tool", axes_length=0.15, axes_radius=0.008,
-                wxyz=tuple(wxyz_from_matrix(T_tool[:3, :3])), position=tuple(origins[-1]),
-            )
-            self.current = {"robot": model.id, "q": np.asarray(q, dtype=float).tolist()}
+    @property
+    def port(self) -> int:
+        """The port the server is bound to."""
+        return self.server.get_port()
 
     def stop(self) -> None:
+        """Stop the threads and the server."""
+        self._stop.set()
+        self._ik_wake.set()
+        for t in self._threads:
+            t.join(timeout=2.0)
         self.server.stop()
+
+    # ---- robots -----------------------------------------------------------------------
+    def _robot_options(self) -> tuple[str, ...]:
+        return (*self.registry.ids(), *self.registry.rigs)
+
+    def _arm_models(self, key: str) -> dict[str, RobotModel]:
+        """Arms to draw for a robot or rig id; KeyError if it is neither."""
+        rigs = self.registry.rigs
+        if key in rigs:
+            return dict(rigs[key].arms)
+        return {"": self.registry.get(key)}
+
+    def select(self, key: str, q=None, *, keep_plan: bool = False) -> dict:
+        """Show robot or rig ``key`` at ``q`` (``(dof,)`` for a robot, ``{arm: (dof,)}`` for a
+        rig; default mid-limits). KeyError if unknown, ValueError for a wrong ``q``."""
+        models = self._arm_models(key)
+        qs: dict[str, np.ndarray] = {}
+        for arm, model in models.items():
+            given = q.get(arm) if isinstance(q, dict) else (q if arm == "" else None)
+            qa = model.mid_configuration() if given is None else np.asarray(given, float)
+            if qa.shape != (model.dof,) or not np.all(np.isfinite(qa)):
+                raise ValueError(f"expected {model.dof} finite joint values for robot "
+                                 f"'{model.id}', got {list(np.shape(given))}")
+            qs[arm] = qa
+        with self._lock, self.server.atomic():
+            if not keep_plan:
+                self._clear_plan()
+            for arm in self._arms.values():
+                arm.nodes.remove()
+            self._generation += 1
+            self._key = key
+            self._arms = {}
+            for arm, model in models.items():
+                root = f"{ROBOT_ROOT}/{key}" + (f"/{arm}" if arm else "")
+                self._arms[arm] = _Arm(arm, model, qs[arm],
+                                       RobotNodes(self.server.scene, root, model, qs[arm]))
+            self._active = next(iter(self._arms))
+            self.gui.robot.value = key
+            self.gui.arm.options = tuple(self._arms) if len(self._arms) > 1 else ("-",)
+            self.gui.arm.visible = len(self._arms) > 1
+            if len(self._arms) > 1:
+                self.gui.arm.value = self._active
+            self._show_active()
+            self._frame_cameras()
+            self._remember()
+            return self.current
+
+    def show_robot(self, model: RobotModel | str, q=None) -> dict:
+        """Show a robot (model or id) at ``q (dof,)``; returns ``{"robot", "q"}``."""
+        key = model if isinstance(model, str) else model.id
+        return self.select(key, q)
+
+    def _show_active(self) -> None:
+        """Sliders, cylinder table and gizmo for the active arm (under the lock)."""
+        arm = self._arms[self._active]
+        self.gui.set_joints(arm.model, arm.q, self._on_slider)
+        self.gui.show_cylinders(arm.nodes.drawing.cylinders)
+        self._place_gizmo(arm.nodes.drawing)
+        self.gui.ik.content = "The arm follows the gizmo where IK reaches it."
+
+    def _place_gizmo(self, drawing: RobotDrawing) -> None:
+        T = drawing.T_base_tool
+        self.gizmo.position = T[:3, 3] * MM_TO_M
+        self.gizmo.wxyz = wxyz_from_matrix(T[:3, :3])
+        self.gizmo.scale = max(0.15, 0.25 * reach_m(self._arms[self._active].model))
+
+    def _remember(self) -> None:
+        if len(self._arms) == 1 and "" in self._arms:
+            self.current = {"robot": self._key, "q": self._arms[""].q.tolist()}
+        else:
+            self.current = {"robot": self._key,
+                            "q": {k: a.q.tolist() for k, a in self._arms.items()}}
+        if self._plan is not None:
+            self.current["job"] = self._plan.job
+            self.current["kind"] = self._plan.kind
+
+    def set_q(self, q, arm: str | None = None, *, source: str = "api") -> RobotDrawing:
+        """Move an arm (default: the active one) to ``q (dof,)``. ``source`` says who asked:
+        the sliders are not written back to themselves, the gizmo not while it is dragged."""
+        with self._lock, self.server.atomic():
+            key = self._active if arm is None else arm
+            a = self._arms[key]
+            a.q = np.asarray(q, dtype=float).copy()
+            drawing = a.nodes.update(a.q)
+            if key == self._active:
+                if source != "slider":
+                    self.gui.show_q(a.model, a.q)
+                self.gui.show_cylinders(drawing.cylinders)
+                if source != "ik":
+                    self._place_gizmo(drawing)
+            self._remember()
+            return drawing
+
+    def q(self, arm: str | None = None) -> np.ndarray:
+        """Current configuration of an arm (default: the active one)."""
+        with self._lock:
+            return self._arms[self._active if arm is None else arm].q.copy()
+
+    def tool_position(self, arm: str | None = None) -> np.ndarray:
+        """Tool position ``(3,)`` mm of an arm as drawn."""
+        with self._lock:
+            a = self._arms[self._active if arm is None else arm]
+            return a.nodes.drawing.T_base_tool[:3, 3].copy()
+
+    @property
+    def arm_roots(self) -> dict[str, str]:
+        """Scene root of each drawn arm."""
+        with self._lock:
+            return {k: a.nodes.root for k, a in self._arms.items()}
+
+    # ---- IK -----------------------------------------------------------------------------
+    def drag_tool_to(self, T_base_tool, arm: str | None = None) -> IKResult:
+        """Solve IK for the tool pose ``(4, 4)`` mm from the current configuration and move
+        the arm there if it succeeds; otherwise keep it and report why in the panel."""
+        with self._lock:
+            key = self._active if arm is None else arm
+            a = self._arms[key]
+            model, q0, generation = a.model, a.q.copy(), self._generation
+        (result,) = solve_ik(model, np.asarray(T_base_tool, dtype=float), q0=q0)
+        with self._lock:
+            if generation != self._generation:
+                return result  # the robot changed meanwhile: the answer is stale
+            self._ik_last = result
+            if result.success:
+                self.set_q(result.q, key, source="ik")
+                self.gui.ik.content = (f"Reached: position error {result.position_error:.2g} "
+                                       f"mm ({result.method}).")
+            else:
+                self.gui.ik.content = (f"**Cannot reach the gizmo** ({result.status}): "
+                                       f"{result.message}\n\nThe arm stays at its last good "
+                                       "pose.")
+        return result
+
+    def _on_gizmo(self, event: Any) -> None:
+        target = event.target
+        T = np.eye(4)
+        T[:3, :3] = _matrix_from_wxyz(np.asarray(target.wxyz, dtype=float))
+        T[:3, 3] = np.asarray(target.position, dtype=float) / MM_TO_M
+        with self._lock:
+            if event.phase == "start":
+                self._playing = False
+            # Only the newest pose matters: drags arrive faster than IK may answer.
+            self._ik_pending = (T, event.phase == "end")
+        self._ik_wake.set()
+
+    def _ik_loop(self) -> None:
+        while not self._stop.is_set():
+            self._ik_wake.wait()
+            self._ik_wake.clear()
+            with self._lock:
+                pending, self._ik_pending = self._ik_pending, None
+            if pending is None or self._stop.is_set():
+                continue
+            T, ended = pending
+            try:
+                self.drag_tool_to(T)
+            except Exception as exc:  # a bad pose must not kill the IK thread
+                log.warning("IK for the gizmo failed: %s", exc)
+                with self._lock:
+                    self.gui.ik.content = f"**IK error**: {exc}"
+            if ended:
+                with self._lock:
+                    if self._ik_pending is None:  # back to the tool at the end of a drag
+                        self._place_gizmo(self._arms[self._active].nodes.drawing)
+
+    # ---- GUI callbacks ------------------------------------------------------------------
+    def _wire(self) -> None:
+        g = self.gui
+
+        @g.robot.on_update
+        def _(event: Any) -> None:
+            if event.client is None:  # set by the viewer itself
+                return
+            try:
+                self.select(g.robot.value)
+            except KeyError:
+                self.refresh_robots()
+
+        @g.arm.on_update
+        def _(event: Any) -> None:
+            if event.client is None:
+                return
+            with self._lock:
+                if g.arm.value in self._arms:
+                    self._active = g.arm.value
+                    self._show_active()
+
+        @g.run_workspace.on_click
+        def _(event: Any) -> None:
+            self.run_workspace(int(g.samples.value))
+
+        @g.time.on_update
+        def _(event: Any) -> None:
+            if event.client is None:
+                return
+            with self._lock:
+                self._playing = False
+                g.play.label = "Play"
+                self._apply_time(float(g.time.value))
+
+        @g.play.on_click
+        def _(event: Any) -> None:
+            self.toggle_play()
+
+        self.gizmo.on_update(self._on_gizmo)
+
+    def _on_slider(self, i: int, event: Any) -> None:
+        if event.client is None:
+            return
+        with self._lock:
+            a = self._arms[self._active]
+            q = a.q.copy()
+            q[i] = self.gui.slider_q(a.model)[i]
+            self._playing = False
+            self.set_q(q, source="slider")
+
+    def _on_connect(self, client: Any) -> None:
+        with self._lock:
+            position, look_at = self._camera_pose()
+        client.camera.up_direction = (0.0, 0.0, 1.0)
+        client.camera.position = position
+        client.camera.look_at = look_at
+
+    def _camera_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """A view of every drawn arm from the front left, above."""
+        pts = np.vstack([a.nodes.drawing.frames[:, :3, 3] for a in self._arms.values()])
+        pts = pts * MM_TO_M
+        centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+        size = max(float(np.linalg.norm(np.ptp(pts, axis=0))), 0.5)
+        return centre + size * np.array([0.35, -0.8, 0.4]), centre
+
+    def _frame_cameras(self) -> None:
+        position, look_at = self._camera_pose()
+        self.server.initial_camera.position = position
+        self.server.initial_camera.look_at = look_at
+        size = float(np.linalg.norm(position - look_at))
+        self._grid.width = self._grid.height = float(max(4.0, 2.0 * round(size)))
+        for client in self.server.get_clients().values():
+            client.camera.position = position
+            client.camera.look_at = look_at
+
+    def refresh_robots(self) -> None:
+        """Compare the robot list with the registry; update the dropdown when it changed
+        (and show the first robot if the one shown has been deleted)."""
+        options = self._robot_options()
+        with self._lock:
+            if options == self._options:
+                return
+            self._options = options
+            self.gui.robot.options = options
+            if self._key in options:
+                self.gui.robot.value = self._key
+                return
+        self.select(options[0])
+
+    # ---- jobs ---------------------------------------------------------------------------
+    def run_workspace(self, samples: int) -> str | None:
+        """Submit a ``workspace`` job for the active arm; the tick loop follows it. Returns
+        the job id (None if the job manager refused it; the panel says why)."""
+        with self._lock:
+            model = self._arms[self._active].model
+        try:
+            job = self.jobs.submit("workspace", {"robot": model.id, "samples": int(samples)})
+        except Exception as exc:  # JobParamsError, QueueFullError: say why in the panel
+            with self._lock:
+                self.gui.workspace.content = f"**Not started**: {exc}"
+            return None
+        with self._lock:
+            self._workspace_job = job.id
+            self.gui.progress.value = 0.0
+            self.gui.progress.visible = True
+            self.gui.workspace.content = f"Job `{job.id}`: queued ({samples:,} samples)"
+        return job.id
+
+    def _poll_workspace(self) -> None:
+        with self._lock:
+            job_id = self._workspace_job
+        if job_id is None:
+            return
+        try:
+            job = self.jobs.get(job_id)
+        except KeyError:
+            job = None
+        with self._lock:
+            if job is None or job.status in ("failed", "cancelled"):
+                why = "vanished" if job is None else f"{job.status}: {job.error or ''}"
+                self.gui.workspace.content = f"Job `{job_id}` {why}"
+                self.gui.progress.visible = False
+                self._workspace_job = None
+                return
+            self.gui.progress.value = float(np.clip(100.0 * job.progress, 0.0, 100.0))
+            if job.status != "succeeded":
+                msg = f" ({job.message})" if job.message else ""
+                self.gui.workspace.content = (f"Job `{job_id}`: {job.status}, "
+                                              f"{100 * job.progress:.0f} %{msg}")
+                return
+            self._workspace_job = None
+            self.gui.progress.visible = False
+        try:
+            self.show_job(job_id)
+        except (KeyError, ValueError, JobNotReady) as exc:
+            with self._lock:
+                self.gui.workspace.content = f"Job `{job_id}` cannot be shown: {exc}"
+            return
+        with self._lock:
+            if self._plan is not None:
+                self.gui.workspace.content = self._plan.summary
+
+    def show_job(self, job_id: str) -> dict:
+        """Draw a finished job's result. KeyError if the job is unknown, ``JobNotReady`` if it
+        has not succeeded, ValueError if its kind cannot be drawn or its result is not of the
+        documented shape."""
+        job = self.jobs.get(job_id)
+        if job.kind not in DRAWABLE_KINDS:
+            raise ValueError(f"the viewer cannot show jobs of kind '{job.kind}'; it shows "
+                             f"{', '.join(DRAWABLE_KINDS)}")
+        if job.status != "succeeded":
+            raise JobNotReady(job_id, job.status, job.error)
+        result = json.loads(self.jobs.result(job_id))
+        plan = plan_from_result(job.kind, job.params, result, job=job_id,
+                                models=self.registry.get, rigs=self.registry.rigs)
+        return self.show_plan(plan)
+
+    def show_plan(self, plan: Plan) -> dict:
+        """Draw ``plan`` (replacing any plan shown), switching to its robot if it names one."""
+        with self._lock:
+            if plan.robot is not None and plan.robot != self._key:
+                self.select(plan.robot)
+            for arm in plan.motions:
+                if arm not in self._arms:
+                    raise ValueError(f"the plan moves arm '{arm}', which '{self._key}' "
+                                     "does not have")
+            with self.server.atomic():
+                self._clear_plan()
+                self._plan = plan
+                size = max(reach_m(a.model) for a in self._arms.values())
+                self._plan_handles = draw_plan(self.server.scene, f"{PLAN_ROOT}/{plan.kind}",
+                                               plan, size)
+                self.gui.plan.content = plan.summary
+                self.gui.set_playback(plan.duration)
+                self._time = 0.0
+                self._playing = False
+                if plan.motions:
+                    self._apply_time(0.0)
+            self._remember()
+            return {**self.current, "nodes": sorted(self._plan_handles)}
+
+    @property
+    def plan_nodes(self) -> list[str]:
+        """Node names of the plan shown."""
+        with self._lock:
+            return sorted(self._plan_handles)
+
+    def _clear_plan(self) -> None:
+        root = next(iter(self._plan_handles.values()), None)
+        if root is not None:
+            root.remove()
+        self._plan_handles = {}
+        self._plan = None
+        self._playing = False
+        self.gui.plan.content = "No plan shown: `POST /viewer/show {\"job\": id}`."
+        self.gui.set_playback(0.0)
+
+    # ---- playback -----------------------------------------------------------------------
+    def toggle_play(self) -> bool:
+        """Start or pause the plan's motion; returns whether it now plays."""
+        with self._lock:
+            if self._plan is None or not self._plan.motions:
+                return False
+            self._playing = not self._playing
+            if self._playing and self._time >= self._plan.duration:
+                self._time = 0.0
+            self.gui.play.label = "Pause" if self._playing else "Play"
+            return self._playing
+
+    def set_time(self, t: float) -> None:
+        """Put the plan's arms at time ``t`` s (paused)."""
+        with self._lock:
+            self._playing = False
+            self._apply_time(t)
+
+    def _apply_time(self, t: float) -> None:
+        if self._plan is None:
+            return
+        self._time = float(np.clip(t, 0.0, self._plan.duration))
+        with self.server.atomic():
+            for arm, motion in self._plan.motions.items():
+                self.set_q(motion.at(self._time), arm, source="playback")
+            if abs(self.gui.time.value - self._time) > 1e-9:
+                self.gui.time.value = self._time
+
+    def _tick_loop(self) -> None:
+        last_refresh = last_poll = 0.0
+        previous = time.monotonic()
+        while not self._stop.wait(TICK_S):
+            now = time.monotonic()
+            dt, previous = now - previous, now
+            try:
+                with self._lock:
+                    if self._playing and self._plan is not None:
+                        t = self._time + dt * float(self.gui.speed.value)
+                        if t >= self._plan.duration:
+                            self._playing = False
+                            self.gui.play.label = "Play"
+                        self._apply_time(t)
+                if now - last_poll >= POLL_S:
+                    last_poll = now
+                    self._poll_workspace()
+                if now - last_refresh >= ROBOTS_REFRESH_S:
+                    last_refresh = now
+                    self.refresh_robots()
+            except Exception:  # keep the loop alive; the panel shows job errors itself
+                log.exception("viewer tick failed")
+
+
+def _matrix_from_wxyz(wxyz: np.ndarray) -> np.ndarray:
+    import viser.transforms as vtf
+
+    return vtf.SO3(wxyz=wxyz / np.linalg.norm(wxyz)).as_matrix()

@@ -1,11 +1,11 @@
-"""Tell the 3D viewer what to show."""
+"""Tell the 3D viewer what to show: a robot (or rig) in a configuration, or a finished job."""
 
 from __future__ import annotations
 
 from fastapi import APIRouter, Request
 
 from ..deps import RegistryDep
-from ..errors import invalid, not_found, unavailable
+from ..errors import conflict, http_error, invalid, unavailable
 from ..schemas import ViewerShowRequest
 
 router = APIRouter(prefix="/viewer", tags=["viewer"])
@@ -13,21 +13,39 @@ router = APIRouter(prefix="/viewer", tags=["viewer"])
 
 @router.post("/show")
 def viewer_show(request: Request, registry: RegistryDep, body: ViewerShowRequest) -> dict:
-    """Show a robot in a configuration in the 3D viewer."""
+    """Show a robot in a configuration, or a finished job's result, in the 3D viewer."""
+    from web.viewer import JobNotReady
+
     viewer = request.app.state.viewer
     if viewer is None:
         raise unavailable("viewer", "the 3D viewer is not running (started with --no-viewer)")
     if body.job is not None:
-        raise not_found("job", body.job)
+        if body.robot is not None or body.q is not None:
+            raise invalid(["job"], "give either a job, or a robot (and q), not both")
+        try:
+            return {"shown": viewer.show_job(body.job)}
+        except KeyError:
+            raise http_error(404, ["body", "job"], f"unknown job '{body.job}'",
+                             "not_found") from None
+        except JobNotReady as exc:
+            raise conflict(["job"], str(exc)) from None
+        except ValueError as exc:
+            raise invalid(["job"], str(exc)) from None
     if body.robot is None:
-        raise invalid(["robot"], "name the robot to show")
+        raise invalid(["robot"], "name the robot (or rig) to show, or a job")
+    if body.robot not in registry.rigs:
+        try:
+            model = registry.get(body.robot)
+        except KeyError:
+            raise http_error(404, ["body", "robot"], f"unknown robot '{body.robot}'",
+                             "not_found") from None
+        if body.q is not None and len(body.q) != model.dof:
+            raise invalid(["q"], f"expected {model.dof} joint values for robot "
+                          f"'{model.id}', got {len(body.q)}")
+    elif body.q is not None:
+        raise invalid(["q"], f"'{body.robot}' is a rig: it is shown at mid-limits, give no q")
     try:
-        model = registry.get(body.robot)
-    except KeyError:
-        raise not_found("robot", body.robot) from None
-    q = body.q if body.q is not None else model.mid_configuration().tolist()
-    if len(q) != model.dof:
-        raise invalid(["q"], f"expected {model.dof} joint values for robot '{model.id}', "
-                      f"got {len(q)}")
-    viewer.show_robot(model, q)
-    return {"shown": viewer.current}
+        shown = viewer.select(body.robot, body.q)
+    except ValueError as exc:
+        raise invalid(["q"], str(exc)) from None
+    return {"shown": shown}

@@ -1,0 +1,200 @@
+"""The viewer in a real browser: headless Chromium (Debian's, not Playwright's download)
+driven by Playwright, against the API and the viser server in one process.
+
+The browser's view of the scene is read from viser's test hooks: ``window.__viserSceneTree``
+(node names and props) and ``window.__viserMutable.nodePoseData`` (node poses). The
+environment map is off, so the canvas shows as soon as the scene arrives.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import shutil
+import time
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from app.config import Settings
+from app.jobs.kinds import KINDS, load_kind_modules
+from app.main import create_app
+from kinematics.fk import fk
+from web.gui import REVOLUTE_STEP_DEG
+from web.scene import MM_TO_M
+from web.viewer import Viewer
+
+sync_api = pytest.importorskip("playwright.sync_api",
+                               reason="Playwright is in the 'test' extra: pip install -e '.[test]'")
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--disable-quic",
+                 "--no-first-run"]
+TIMEOUT_MS = 20_000
+ROBOT = "/robot/pile_driver"
+STEPS = 2  # arrow-key presses on the slider
+
+NODE_NAMES = "() => Object.keys(window.__viserSceneTree.getState())"
+NODE_POSITION = """(name) => {
+    const p = window.__viserMutable && window.__viserMutable.nodePoseData[name];
+    return p ? Array.from(p.position) : null; }"""
+POINT_COUNT = """(name) => {
+    const n = window.__viserSceneTree.getState()[name];
+    return n ? n.message.props.points.length / 3 : -1; }"""
+
+
+@pytest.fixture(scope="module")
+def service(tmp_path_factory):
+    """The API (job pool started) with the viewer on a free port."""
+    if not shutil.which(CHROMIUM):
+        pytest.fail(f"Chromium not found at {CHROMIUM}: run `make chromium` "
+                    "(apt-get install -y chromium)")
+    api = create_app(Settings(no_viewer=True, data_dir=tmp_path_factory.mktemp("data"),
+                              workers=1))
+    api.state.viewer = Viewer.start("127.0.0.1", 0, api.state, environment_map=False)
+    with TestClient(api) as client:
+        yield api, client
+    api.state.viewer.stop()
+
+
+@pytest.fixture(scope="module")
+def browser(service):
+    with sync_api.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+def _open(browser, viewer: Viewer):
+    page = browser.new_page(viewport={"width": 900, "height": 600})
+    page.set_default_timeout(TIMEOUT_MS)
+    page.goto(f"http://127.0.0.1:{viewer.port}")
+    # viser's client retries a websocket connection only while its page has the focus.
+    page.bring_to_front()
+    page.get_by_text("Connected").wait_for()
+    page.wait_for_function("() => window.__viserSceneTree !== undefined")
+    return page
+
+
+def _wait_job(client: TestClient, job_id: str, timeout: float = 60.0) -> dict:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        job = client.get(f"/jobs/{job_id}").json()
+        if job["status"] in ("succeeded", "failed", "cancelled"):
+            assert job["status"] == "succeeded", job
+            return job
+        time.sleep(0.1)
+    raise AssertionError(f"job {job_id} did not finish")
+
+
+def _wait_position(page, name: str, want_m: np.ndarray) -> None:
+    page.wait_for_function(
+        """([name, want]) => {
+            const p = window.__viserMutable && window.__viserMutable.nodePoseData[name];
+            return p && p.position.every((v, i) => Math.abs(v - want[i]) < 1e-6); }""",
+        arg=[name, [float(v) for v in want_m]])
+
+
+def test_viewer_in_a_browser(service, browser, tmp_path):
+    api, client = service
+    viewer: Viewer = api.state.viewer
+    model = api.state.registry.get("pile_driver")
+    started = time.monotonic()
+    page = _open(browser, viewer)
+
+    # The robot's nodes, named along the chain, with its hydraulic cylinders.
+    page.wait_for_function(f"() => '{ROBOT}/tool' in window.__viserSceneTree.getState()")
+    names = set(page.evaluate(NODE_NAMES))
+    for i in range(model.dof):
+        assert {f"{ROBOT}/link_{i}", f"{ROBOT}/joint_{i}"} <= names
+    assert {f"{ROBOT}/base", f"{ROBOT}/cylinders/boom/barrel",
+            f"{ROBOT}/cylinders/boom/rod"} <= names
+    tool_before = np.array(page.evaluate(NODE_POSITION, f"{ROBOT}/tool"))
+    np.testing.assert_allclose(tool_before, viewer.tool_position() * MM_TO_M, atol=1e-6)
+
+    # Arrow keys on the first joint slider (swing, 0.5 deg a step) turn the arm.
+    slider = page.get_by_role("slider").first
+    slider.focus()
+    for _ in range(STEPS):
+        slider.press("ArrowRight")
+    q = model.mid_configuration().copy()
+    q[0] += math.radians(STEPS * REVOLUTE_STEP_DEG)
+    deadline = time.monotonic() + 10
+    while not np.allclose(viewer.q(), q, atol=1e-9) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    np.testing.assert_allclose(viewer.q(), q, atol=1e-9)
+    tool_after = fk(model, q)[:3, 3] * MM_TO_M
+    assert np.linalg.norm(tool_after - tool_before) > 0.02  # 1 deg at ~1.7 m reach
+    _wait_position(page, f"{ROBOT}/tool", tool_after)
+
+    # A second tab watches the same scene, as it is now.
+    other = _open(browser, viewer)
+    _wait_position(other, f"{ROBOT}/tool", tool_after)
+
+    # The workspace button: a job, its progress, then the cloud.
+    viewer.gui.samples.value = 2500
+    page.get_by_role("button", name="Run workspace").click()
+    page.wait_for_function(f"() => ({POINT_COUNT})('/plan/workspace/points') === 2500",
+                           timeout=60_000)
+    assert "Workspace" in viewer.gui.workspace.content
+
+    # A finished job shown through the API replaces it.
+    job = client.post("/jobs", json={"kind": "workspace",
+                                     "params": {"robot": "pile_driver", "samples": 1200}})
+    _wait_job(client, job.json()["id"])
+    r = client.post("/viewer/show", json={"job": job.json()["id"]})
+    assert r.status_code == 200, r.text
+    assert "/plan/workspace/points" in r.json()["shown"]["nodes"]
+    page.wait_for_function(f"() => ({POINT_COUNT})('/plan/workspace/points') === 1200")
+    other.wait_for_function(f"() => ({POINT_COUNT})('/plan/workspace/points') === 1200")
+
+    # The picture is not blank: the canvas is shown and the pixels vary.
+    page.wait_for_function(
+        "() => { const c = document.querySelector('canvas');"
+        " return c && getComputedStyle(c).opacity === '1'; }")
+    png = page.screenshot(path=str(tmp_path / "viewer.png"))
+    from PIL import Image
+
+    pixels = np.asarray(Image.open(io.BytesIO(png)).convert("L"), dtype=float)
+    scene_part = pixels[:, : pixels.shape[1] // 2]  # left of the GUI panel
+    assert scene_part.std() > 8.0, scene_part.std()
+    assert len(np.unique(scene_part)) > 50
+    other.close()
+    page.close()
+    assert time.monotonic() - started < 60
+
+
+def test_a_path_job_in_the_browser(service, browser):
+    load_kind_modules()
+    if "path" not in KINDS:
+        pytest.skip("the 'path' job kind is not registered in this tree yet "
+                    f"(kinds: {', '.join(sorted(KINDS))}); its rendering is unit-tested in "
+                    "test_viewer_scene.py with a library-made path")
+    api, client = service
+    viewer: Viewer = api.state.viewer
+    model = api.state.registry.get("pile_driver")
+    # Tool positions the arm reaches, with a ball between them.
+    start = fk(model, np.radians([10, 30, -30, -30, 0, 0]))[:3, 3]
+    goal = fk(model, np.radians([60, 35, -25, -30, 0, 0]))[:3, 3]
+    params = {"scene": {"bounds": [[-2500, -2500, -1000], [2500, 2500, 2000]],
+                        "obstacles": [{"center": ((start + goal) / 2).tolist(), "radius": 100}]},
+              "start": start.tolist(), "goal": goal.tolist(), "algorithm": "auto", "seed": 0,
+              "robot": "pile_driver"}
+    job = client.post("/jobs", json={"kind": "path", "params": params})
+    assert job.status_code == 202, job.text
+    _wait_job(client, job.json()["id"], timeout=120)
+    r = client.post("/viewer/show", json={"job": job.json()["id"]})
+    assert r.status_code == 200, r.text
+    page = _open(browser, viewer)
+    page.wait_for_function(
+        "() => '/plan/path/path' in window.__viserSceneTree.getState()"
+        " && '/plan/path/obstacles/0' in window.__viserSceneTree.getState()")
+    result = client.get(f"/jobs/{job.json()['id']}/result").json()
+    if result.get("trajectory"):  # the arm moves along it: at the end, its tool is at the goal
+        assert not viewer.gui.time.disabled
+        viewer.set_time(viewer.gui.time.max)
+        _wait_position(page, f"{ROBOT}/tool", viewer.tool_position() * MM_TO_M)
+        np.testing.assert_allclose(viewer.tool_position(), goal, atol=1.0)
+    page.close()
