@@ -18,21 +18,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from .base import (
-    ProgressFn,
-    SequenceResult,
+    IterativeSequencer,
     SequencingProblem,
     Tracker,
     held_karp,
     nearest_neighbour,
-    run_tracked,
 )
 
 __all__ = ["ACO"]
 
 
 @dataclass(frozen=True)
-class ACO:
+class ACO(IterativeSequencer):
     """Ant System parameters (defaults: paper 002, section 4.1)."""
+
+    name = "aco"
 
     ants: int = 50
     alpha: float = 1.0
@@ -54,12 +54,6 @@ class ACO:
         if self.iterations < 1:
             raise ValueError("params.iterations: must be >= 1")
 
-    def solve(self, problem: SequencingProblem, rng: np.random.Generator, *,
-              progress: ProgressFn | None = None,
-              max_evaluations: int | None = None) -> SequenceResult:
-        """Run the Ant System; ``history`` has one entry per iteration."""
-        tr = Tracker(problem, self.iterations, progress, max_evaluations)
-        return run_tracked(tr, lambda: self._body(problem, rng, tr), "aco")
 
     def _body(self, problem: SequencingProblem, rng: np.random.Generator, tr: Tracker) -> str:
         n, m = problem.n, self.ants

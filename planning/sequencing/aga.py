@@ -24,20 +24,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from .base import (
-    ProgressFn,
-    SequenceResult,
+    IterativeSequencer,
     SequencingProblem,
     Tracker,
     held_karp,
-    run_tracked,
 )
 
 __all__ = ["AGA", "order_crossover"]
 
 
 @dataclass(frozen=True)
-class AGA:
+class AGA(IterativeSequencer):
     """AGA parameters (defaults: paper 002 section 4.1, plus our ``pc_min``, ``pm_min``)."""
+
+    name = "aga"
 
     population: int = 50
     crossover: float = 0.95
@@ -60,12 +60,6 @@ class AGA:
         if self.iterations < 1:
             raise ValueError("params.iterations: must be >= 1")
 
-    def solve(self, problem: SequencingProblem, rng: np.random.Generator, *,
-              progress: ProgressFn | None = None,
-              max_evaluations: int | None = None) -> SequenceResult:
-        """Run the AGA; ``history`` has one entry per generation."""
-        tr = Tracker(problem, self.iterations, progress, max_evaluations)
-        return run_tracked(tr, lambda: self._body(problem, rng, tr), "aga")
 
     def _adaptive(self, f: np.ndarray, f_avg: float, f_max: float, hi: float,
                   lo: float) -> np.ndarray:

@@ -586,3 +586,20 @@ def double_bridge(order: np.ndarray, rng: np.random.Generator,
     cut = [a - 1, a, a + lb - 1, a + lb, a + lb + lc - 1, a + lb + lc]
     touched = order[[c for c in cut if 0 <= c < n]]
     return new, touched
+
+
+class IterativeSequencer:
+    """Base of the iterative sequencers: ``solve`` runs the subclass's ``_body(problem, rng,
+    tracker)`` for ``self.iterations`` generations under the tracker (budget, progress,
+    history); ``name`` labels the result."""
+
+    name = "sequencer"
+
+    def solve(self, problem: SequencingProblem, rng: np.random.Generator, *,
+              progress: ProgressFn | None = None,
+              max_evaluations: int | None = None) -> SequenceResult:
+        """Run the algorithm; the result's ``history`` has one entry per generation."""
+        tr = Tracker(problem, self.iterations, progress,  # type: ignore[attr-defined]
+                     max_evaluations)
+        return run_tracked(tr, lambda: self._body(problem, rng, tr),  # type: ignore
+                           self.name)
