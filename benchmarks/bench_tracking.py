@@ -10,7 +10,7 @@ The paper's numbers come from its own (unprinted) task sizes, step and units, so
 reference for the shape of the table, not targets for the values.
 
 Run: ``.venv/bin/python benchmarks/bench_tracking.py [--runs 30] [--workers 2]``
-(about 10 minutes on 2 cores). It is a report: the exit status is 0 in any case.
+(about 16 minutes on 2 cores). It is a report: the exit status is 0 in any case.
 """
 
 from __future__ import annotations

@@ -133,22 +133,27 @@ def _algorithm_params(v, info: ValidationInfo):
     return v
 
 
-class PathParams(Params):
+class _SceneTask(Params):
+    """A scene with free start and goal points (mm), and the seed of the planners."""
+
     scene: SceneIn
     start: Vec3
     goal: Vec3
-    algorithm: Algorithm = "auto"
     seed: int = Field(0, ge=0, le=2**32 - 1)
-    params: dict[str, Any] | None = Field(
-        None, description="Planner parameters (defaults: paper 000's); see planning.paths")
-    robot: str | None = Field(None, description="Robot id: plan for its tool and check the "
-                                                "whole arm")
-    arm: ArmOptions | None = None
 
     @field_validator("start", "goal")
     @classmethod
     def _free(cls, v, info: ValidationInfo):
         return _endpoint(v, info)
+
+
+class PathParams(_SceneTask):
+    algorithm: Algorithm = "auto"
+    params: dict[str, Any] | None = Field(
+        None, description="Planner parameters (defaults: paper 000's); see planning.paths")
+    robot: str | None = Field(None, description="Robot id: plan for its tool and check the "
+                                                "whole arm")
+    arm: ArmOptions | None = None
 
     @field_validator("params")
     @classmethod
@@ -196,22 +201,13 @@ def run_path(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
     return out
 
 
-class PathCompareParams(Params):
-    scene: SceneIn
-    start: Vec3
-    goal: Vec3
+class PathCompareParams(_SceneTask):
     algorithms: list[Algorithm] = Field(
         default_factory=lambda: ["wolfpack_improved", "wolfpack", "aca", "ga", "afsa"],
         min_length=1, max_length=7)
     runs: int = Field(10, ge=1, le=100, description="Seeds per algorithm")
-    seed: int = Field(0, ge=0, le=2**32 - 1)
     params: dict[str, dict[str, Any]] | None = Field(
         None, description="Parameters per algorithm, e.g. {'wolfpack': {'iterations': 20}}")
-
-    @field_validator("start", "goal")
-    @classmethod
-    def _free(cls, v, info: ValidationInfo):
-        return _endpoint(v, info)
 
     @field_validator("params")
     @classmethod

@@ -25,6 +25,21 @@ def is_zero(x: float) -> bool:
     return abs(x) < 1e-9
 
 
+def has_6r_structure(model: RobotModel, *, right_angle: tuple[int, ...],
+                     parallel: tuple[int, ...], zero_a: tuple[int, ...] = (),
+                     zero_d: tuple[int, ...] = ()) -> bool:
+    """Whether ``model`` is a 6R arm in modified D-H whose joints (0-based) in
+    ``right_angle`` have alpha = +-90 deg, in ``parallel`` alpha = 0, and whose ``zero_a`` /
+    ``zero_d`` joints have a = 0 / d = 0: the structure a closed-form solver relies on."""
+    if model.convention != "mdh" or model.dof != 6 or not all(model.revolute):
+        return False
+    j = model.joints
+    return (all(is_right_angle(j[i].alpha) for i in right_angle)
+            and all(is_zero(j[i].alpha) for i in parallel)
+            and all(is_zero(j[i].a) for i in zero_a)
+            and all(is_zero(j[i].d) for i in zero_d))
+
+
 def reduce_targets(model: RobotModel, T_target: np.ndarray) -> np.ndarray:
     """Target tool poses ``(B, 4, 4)`` -> poses of the last link frame in the frame just
     before joint 1's rotation: ``(base RotX(alpha_0) TransX(a_0))^-1 T_target tool^-1``."""

@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from ..model import RobotModel
-from ._wrist import is_right_angle, is_zero, reduce_targets, rx, rz, wrist_angles
+from ._wrist import has_6r_structure, reduce_targets, rx, rz, wrist_angles
 from .result import IKResult, finish_analytic
 
 __all__ = ["supports", "solve"]
@@ -44,19 +44,8 @@ SINGULAR_SWEEP = 360
 def supports(model: RobotModel) -> bool:
     """Whether ``model`` has the pile-driver structure (three parallel pitch joints, offset
     tilt joint, rotator)."""
-    if model.convention != "mdh" or model.dof != 6 or not all(model.revolute):
-        return False
-    j = model.joints
-    return (
-        is_right_angle(j[1].alpha)
-        and is_zero(j[2].alpha)
-        and is_zero(j[3].alpha)
-        and is_right_angle(j[4].alpha)
-        and is_right_angle(j[5].alpha)
-        and is_zero(j[5].a)
-        and is_zero(j[5].d)
-        and all(is_zero(j[i].d) for i in (1, 2, 3))
-    )
+    return has_6r_structure(model, right_angle=(1, 4, 5), parallel=(2, 3), zero_a=(5,),
+                            zero_d=(1, 2, 3, 5))
 
 
 def solve(

@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from ..model import RobotModel
-from ._wrist import is_right_angle, is_zero, reduce_targets, rx, rz, wrist_angles
+from ._wrist import has_6r_structure, reduce_targets, rx, rz, wrist_angles
 from .result import IKResult, finish_analytic
 
 __all__ = ["supports", "solve"]
@@ -28,20 +28,8 @@ METHOD = "analytic:spherical_wrist"
 
 def supports(model: RobotModel) -> bool:
     """Whether ``model`` has the structure this solver needs."""
-    if model.convention != "mdh" or model.dof != 6 or not all(model.revolute):
-        return False
-    j = model.joints
-    return (
-        is_right_angle(j[1].alpha)
-        and is_zero(j[2].alpha)
-        and is_right_angle(j[3].alpha)
-        and is_right_angle(j[4].alpha)
-        and is_right_angle(j[5].alpha)
-        and is_zero(j[4].a)
-        and is_zero(j[5].a)
-        and is_zero(j[4].d)
-        and is_zero(j[5].d)
-    )
+    return has_6r_structure(model, right_angle=(1, 3, 4, 5), parallel=(2,), zero_a=(4, 5),
+                            zero_d=(4, 5))
 
 
 def solve(

@@ -75,7 +75,6 @@ class ACOR(Optimiser):
         """ACO_R's deviation-distance ratio, ``= rho``."""
         return self.rho
 
-
     def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
         pb = ev.problem
         k, m = self.archive_size, self.n_ants

@@ -53,7 +53,6 @@ class FishSwarm(Optimiser):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive")
 
-
     def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
         pb = ev.problem
         N, D = self.n_fish, pb.dim

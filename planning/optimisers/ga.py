@@ -61,7 +61,6 @@ class GeneticAlgorithm(Optimiser):
         """Paper 000's path-planning GA (section 4.3)."""
         return cls(population=5, crossover=0.8, selection=0.5, mutation=0.2, iterations=100)
 
-
     def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
         pb = ev.problem
         P, D = self.population, pb.dim

@@ -10,6 +10,17 @@ iterations (Table 2). The leaders are the best three distinct points ever evalua
 original's intent; its code replaces a leader without shifting the others). Each iteration
 costs ``N`` evaluations. This is Mirjalili's GWO, not the wolf pack algorithm of
 ``wolfpack.py``.
+
+The pack moves in groups of ``leader_refresh`` wolves and the leaders are refreshed after
+each group, as in the original's per-wolf loop where a wolf that finds a better point leads
+the wolves after it at once (``leader_refresh = n_wolves`` is the fully synchronous update
+of most vectorised codes). Groups of 5 out of 50 converge markedly faster on smooth
+functions and are no worse on multimodal ones: in ``benchmarks/bench_optimisers.py`` the
+median over 30 seeds beats mealpy's ``OriginalGWO`` on sphere, Rastrigin, Rosenbrock and
+Ackley (D = 10, 2550 evaluations), where the synchronous update lost on three of the four.
+The price is ``n_wolves / leader_refresh`` calls of the batched objective per iteration
+instead of one (the evaluations are the same): where one call has a large fixed cost, as the
+tracking simulation has, a tuning run takes about four times as long as with one batch.
 """
 
 from __future__ import annotations
@@ -31,6 +42,7 @@ class GWO(Optimiser):
     a_start: float = 2.0
     a_end: float = 0.0
     iterations: int = 50  # Nc
+    leader_refresh: int = 5  # wolves moved between leader updates
 
     name = "gwo"
 
@@ -41,7 +53,22 @@ class GWO(Optimiser):
             raise ValueError("iterations: must be at least 1")
         if not self.a_start >= self.a_end >= 0:
             raise ValueError("a_start, a_end: need a_start >= a_end >= 0")
+        if not 1 <= self.leader_refresh <= self.n_wolves:
+            raise ValueError("leader_refresh: must be between 1 and n_wolves")
 
+    @staticmethod
+    def _leaders(pool_X: np.ndarray, pool_F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The best three distinct points of a pool (repeated if fewer are distinct)."""
+        order = np.argsort(pool_F, kind="stable")
+        keep = [order[0]]
+        for i in order[1:]:
+            if len(keep) == 3:
+                break
+            if not any(np.array_equal(pool_X[i], pool_X[k]) for k in keep):
+                keep.append(i)
+        while len(keep) < 3:
+            keep.append(keep[-1])
+        return pool_X[keep].copy(), pool_F[keep].copy()
 
     def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
         pb = ev.problem
@@ -50,26 +77,19 @@ class GWO(Optimiser):
             min(self.iterations, max(1, ev.max_evaluations // N - 1))
         X = pb.uniform(rng, N)
         F = ev.evaluate(X)
-        order = np.argsort(F, kind="stable")[:3]
-        leaders, f_leaders = X[order].copy(), F[order].copy()
+        leaders, f_leaders = self._leaders(X, F)
+        groups = [np.arange(i, min(i + self.leader_refresh, N))
+                  for i in range(0, N, self.leader_refresh)]
         for t in range(T):
             a = self.a_start - (self.a_start - self.a_end) * t / T
-            A = a * (2.0 * rng.random((3, N, D)) - 1.0)
-            C = 2.0 * rng.random((3, N, D))
-            L = leaders[:, None, :]
-            X = pb.clip(np.mean(L - A * np.abs(C * L - X[None]), axis=0))
-            F = ev.evaluate(X)
-            pool_X = np.concatenate([leaders, X])
-            pool_F = np.concatenate([f_leaders, F])
-            order = np.argsort(pool_F, kind="stable")
-            keep = [order[0]]
-            for i in order[1:]:  # three distinct leaders
-                if len(keep) == 3:
-                    break
-                if not any(np.array_equal(pool_X[i], pool_X[k]) for k in keep):
-                    keep.append(i)
-            while len(keep) < 3:
-                keep.append(keep[-1])
-            leaders, f_leaders = pool_X[keep].copy(), pool_F[keep].copy()
+            for g in groups:
+                n = len(g)
+                A = a * (2.0 * rng.random((3, n, D)) - 1.0)
+                C = 2.0 * rng.random((3, n, D))
+                L = leaders[:, None, :]
+                X[g] = pb.clip(np.mean(L - A * np.abs(C * L - X[g][None]), axis=0))
+                F_g = ev.evaluate(X[g])
+                leaders, f_leaders = self._leaders(np.concatenate([leaders, X[g]]),
+                                                   np.concatenate([f_leaders, F_g]))
             ev.end_iteration()
         return f"{T} iterations"

@@ -73,7 +73,6 @@ class HGSO(Optimiser):
         if not 0 <= self.c1 <= self.c2 < 1:
             raise ValueError("c1, c2: need 0 <= c1 <= c2 < 1")
 
-
     def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
         pb = ev.problem
         N, M = self.n_gases, self.n_clusters

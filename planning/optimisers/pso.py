@@ -47,7 +47,6 @@ class PSO(Optimiser):
         if not 0 < self.v_max_fraction <= 1:
             raise ValueError("v_max_fraction: must be in (0, 1]")
 
-
     def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
         pb = ev.problem
         N, D = self.n_particles, pb.dim

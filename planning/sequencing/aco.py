@@ -21,7 +21,6 @@ from .base import (
     IterativeSequencer,
     SequencingProblem,
     Tracker,
-    held_karp,
     nearest_neighbour,
 )
 
@@ -54,14 +53,8 @@ class ACO(IterativeSequencer):
         if self.iterations < 1:
             raise ValueError("params.iterations: must be >= 1")
 
-
     def _body(self, problem: SequencingProblem, rng: np.random.Generator, tr: Tracker) -> str:
         n, m = problem.n, self.ants
-        if n <= 3:
-            order, _ = held_karp(problem)
-            tr.evaluate(order[None])
-            tr.end_iteration()
-            return "solved exactly (3 holes or fewer to order)"
         # Rows 0..n-1: from a hole; row n: from the start. Columns: to a hole.
         dist = np.vstack([problem.D, problem.d0[None, :]])
         with np.errstate(divide="ignore"):

@@ -27,7 +27,6 @@ from .base import (
     IterativeSequencer,
     SequencingProblem,
     Tracker,
-    held_karp,
 )
 
 __all__ = ["AGA", "order_crossover"]
@@ -60,7 +59,6 @@ class AGA(IterativeSequencer):
         if self.iterations < 1:
             raise ValueError("params.iterations: must be >= 1")
 
-
     def _adaptive(self, f: np.ndarray, f_avg: float, f_max: float, hi: float,
                   lo: float) -> np.ndarray:
         span = max(f_max - f_avg, 1e-300)
@@ -68,11 +66,6 @@ class AGA(IterativeSequencer):
 
     def _body(self, problem: SequencingProblem, rng: np.random.Generator, tr: Tracker) -> str:
         n, P = problem.n, self.population
-        if n <= 3:
-            order, _ = held_karp(problem)
-            tr.evaluate(order[None])
-            tr.end_iteration()
-            return "solved exactly (3 holes or fewer to order)"
         pop = rng.random((P, n)).argsort(axis=1)
         L = tr.evaluate(pop)
         for _ in range(self.iterations):

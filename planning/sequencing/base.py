@@ -591,9 +591,12 @@ def double_bridge(order: np.ndarray, rng: np.random.Generator,
 class IterativeSequencer:
     """Base of the iterative sequencers: ``solve`` runs the subclass's ``_body(problem, rng,
     tracker)`` for ``self.iterations`` generations under the tracker (budget, progress,
-    history); ``name`` labels the result."""
+    history); ``name`` labels the result. Problems of three holes or fewer are solved
+    exactly instead (a population has nothing to search there)."""
 
     name = "sequencer"
+    #: Problems up to this many holes are solved by ``held_karp`` instead of ``_body``.
+    EXACT_UP_TO = 3
 
     def solve(self, problem: SequencingProblem, rng: np.random.Generator, *,
               progress: ProgressFn | None = None,
@@ -601,5 +604,17 @@ class IterativeSequencer:
         """Run the algorithm; the result's ``history`` has one entry per generation."""
         tr = Tracker(problem, self.iterations, progress,  # type: ignore[attr-defined]
                      max_evaluations)
-        return run_tracked(tr, lambda: self._body(problem, rng, tr),  # type: ignore
-                           self.name)
+
+        def body() -> str:
+            if problem.n <= self.EXACT_UP_TO:
+                return self._exact(problem, tr)
+            return self._body(problem, rng, tr)  # type: ignore[attr-defined]
+
+        return run_tracked(tr, body, self.name)
+
+    @staticmethod
+    def _exact(problem: SequencingProblem, tr: Tracker) -> str:
+        order, _ = held_karp(problem)
+        tr.evaluate(order[None])
+        tr.end_iteration()
+        return "solved exactly (3 holes or fewer to order)"

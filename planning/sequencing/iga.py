@@ -40,7 +40,6 @@ from .base import (
     IterativeSequencer,
     SequencingProblem,
     Tracker,
-    held_karp,
 )
 
 __all__ = ["IGA", "greedy_crossover", "ruin_and_recreate"]
@@ -88,15 +87,9 @@ class IGA(IterativeSequencer):
         if self.initial_temperature is not None and not self.initial_temperature > 0:
             raise ValueError("params.initial_temperature: must be positive")
 
-
     def _body(self, problem: SequencingProblem, rng: np.random.Generator,
               tr: Tracker) -> str:
         n, P = problem.n, self.population
-        if n <= 3:
-            order, length = held_karp(problem)
-            tr.evaluate(order[None])
-            tr.end_iteration()
-            return "solved exactly (3 holes or fewer to order)"
         pop = rng.random((P, n)).argsort(axis=1)
         fit = tr.evaluate(pop)
         T = self.initial_temperature or problem.nn_distance

@@ -3,6 +3,7 @@ a tuned run through the job pool once the kind's module is in ``KIND_MODULES``."
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
@@ -11,6 +12,7 @@ import app.jobs.tracking_kinds  # noqa: F401 - registers the kind in this proces
 from app.config import Settings
 from app.jobs.tracking_kinds import MAX_RUNS, run_tracking
 from app.main import create_app
+from kinematics.fk import fk
 from kinematics.library import builtin_model
 
 from .conftest import wait_for
@@ -75,6 +77,13 @@ def test_job_function_default_and_tuned_pi():
         assert len(out["q"]) == len(out["errors"]) == 51 and len(out["q"][0]) == 9
         assert out["joint_speed_max"] <= 0.1 + 1e-12
         assert out["max_error"] == pytest.approx(max(out["errors"]))
+        # the desired tool path rides along, so a client (and the viewer) can draw both
+        x_d = np.array(out["x_desired"])
+        assert x_d.shape == (51, 3)
+        assert np.linalg.norm(x_d[-1] - x_d[0]) == pytest.approx(LINE["length"])
+        actual = fk(builtin_model("hyper_redundant_9dof"), np.array(out["q"]))[:, :3, 3]
+        np.testing.assert_allclose(np.linalg.norm(x_d - actual, axis=1), out["errors"],
+                                   atol=1e-9)
     assert default["max_error"] < tuned["max_error"]
     assert len(tuned["runs"]) == 2 and [r["seed"] for r in tuned["runs"]] == [0, 1]
     assert tuned["summary"]["max"] >= tuned["max_error"]

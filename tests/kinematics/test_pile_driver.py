@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from kinematics.fk import fk
 from kinematics.ik import pile_driver, solve_ik
@@ -103,19 +101,6 @@ def test_orientation_out_of_limits_is_named():
     assert not res.success and res.status == "out_of_limits"
     assert "tilt" in res.message
     assert solve_ik(MODEL, T)[0].success
-
-
-@settings(max_examples=60, deadline=None)
-@given(st.lists(st.floats(0.02, 0.98), min_size=6, max_size=6))
-def test_fk_ik_identity_closed_form(u):
-    q = MODEL.lower + np.array(u) * (MODEL.upper - MODEL.lower)
-    T = fk(MODEL, q)
-    (res,) = solve_ik(MODEL, T, method="analytic", all_solutions=True)
-    assert res.success
-    dp, dr = pose_errors(fk(MODEL, res.solutions), T[None])
-    assert dp.max() < 1e-6 and dr.max() < 1e-9
-    if not res.singular:
-        assert np.abs(res.solutions - q).max(axis=1).min() < 1e-6
 
 
 def test_workspace_30000_samples_next_to_paper(paper_tables, capsys):
