@@ -533,10 +533,12 @@ def test_a_real_tracking_job_result_is_drawn(api):
                                                   "duration": 5.0}})
     plan = plan_from_result("tracking", params, result, job="t", models=builtin_model)
     names = [p.name for p in plan.polylines]
-    assert "actual" in names
+    assert names == ["desired", "actual"]  # the job's result carries the desired path
     actual = plan.polylines[names.index("actual")].points
     model = builtin_model("hyper_redundant_9dof")
     np.testing.assert_allclose(actual, fk(model, np.asarray(result["q"]))[:, :3, 3])
+    np.testing.assert_allclose(plan.polylines[0].points, result["x_desired"])
+    assert "desired" in plan.summary
     assert plan.motions[""].duration == pytest.approx(result["t"][-1] - result["t"][0])
     api.state.viewer.show_plan(plan)
-    assert "/plan/tracking/actual" in api.state.viewer.plan_nodes
+    assert {"/plan/tracking/actual", "/plan/tracking/desired"} <= set(api.state.viewer.plan_nodes)
