@@ -1,19 +1,16 @@
-"""PNG plots for reports: joint position, velocity, acceleration and jerk against time."""
+"""PNG plots for reports: joint trajectories (position, velocity, acceleration, jerk) and
+tool tracking runs (paper 003 Figure 7: joint angles, joint speeds, error per axis, error)."""
 
 from __future__ import annotations
 
 import io
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")  # no display: render to memory only
+from planning.trajectory import Samples
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from planning.trajectory import Samples  # noqa: E402
-
-__all__ = ["trajectory_png"]
+__all__ = ["trajectory_png", "tracking_png"]
 
 _ROWS = (
     ("q", "position"),
@@ -33,7 +30,8 @@ def trajectory_png(
     """Four stacked panels (position, velocity, acceleration, jerk) of every joint; dashed
     vertical lines at the segment joins ``breaks``. Units per joint: 'rad' or 'mm'."""
     unit = "/".join(sorted(set(joint_units))) or "rad"
-    fig, axes = plt.subplots(4, 1, figsize=(8.0, 9.0), sharex=True, dpi=100)
+    fig = Figure(figsize=(8.0, 9.0), dpi=100)  # no pyplot: no global state, thread-safe
+    axes = fig.subplots(4, 1, sharex=True)
     for ax, (attr, label) in zip(axes, _ROWS):
         values = getattr(samples, attr)
         for j, name in enumerate(joint_names):
@@ -46,10 +44,54 @@ def trajectory_png(
                 ax.axvline(b, color="0.5", linestyle="--", linewidth=0.8)
     axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     axes[-1].set_xlabel("time [s]")
+    return _png(fig, title)
+
+
+def tracking_png(
+    t: np.ndarray,
+    q: np.ndarray,
+    x_desired: np.ndarray,
+    x_actual: np.ndarray,
+    joint_names: list[str],
+    title: str = "",
+    speed_limits: np.ndarray | None = None,
+) -> bytes:
+    """A tracking run in the four panels of paper 003's Figure 7: joint angles ``q (S, dof)``
+    rad, joint speeds (differences of ``q`` over ``t (S,)`` s, with the limits dashed), the
+    error desired - actual per axis and its norm (mm) from ``x_desired``, ``x_actual (S, 3)``.
+    """
+    t, q = np.asarray(t, dtype=float), np.asarray(q, dtype=float)
+    e = np.asarray(x_desired, dtype=float) - np.asarray(x_actual, dtype=float)
+    qd = np.diff(q, axis=0) / np.diff(t)[:, None]
+    fig = Figure(figsize=(8.0, 9.0), dpi=100)  # no pyplot: no global state, thread-safe
+    axes = fig.subplots(4, 1, sharex=True)
+    for j, name in enumerate(joint_names):
+        axes[0].plot(t, q[:, j], label=name, linewidth=1.2)
+        axes[1].step(t[:-1], qd[:, j], where="post", linewidth=1.2)
+    if speed_limits is not None and np.all(np.isfinite(speed_limits)):
+        for v in (float(np.min(speed_limits)), -float(np.min(speed_limits))):
+            axes[1].axhline(v, color="0.4", linestyle="--", linewidth=0.8)
+    for k, axis in enumerate("xyz"):
+        axes[2].plot(t, e[:, k], label=axis, linewidth=1.2)
+    norm = np.linalg.norm(e, axis=1)
+    axes[3].plot(t, norm, color="k", linewidth=1.2, label="|error|")
+    axes[3].axhline(float(norm.mean()), color="0.4", linestyle="--", linewidth=0.8,
+                    label=f"mean {norm.mean():.3g} mm")
+    for ax, label in zip(axes, ("joint angle\n[rad]", "joint speed\n[rad/s]",
+                                "error per axis\n[mm]", "tool error\n[mm]")):
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    axes[2].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    axes[3].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    axes[-1].set_xlabel("time [s]")
+    return _png(fig, title)
+
+
+def _png(fig: Figure, title: str) -> bytes:
     if title:
         fig.suptitle(title)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
-    plt.close(fig)
     return buf.getvalue()

@@ -10,8 +10,8 @@ Params (see ``TrackingParams``): ``robot``; ``task`` ``{"kind": "line", "length"
 ``seed``; ``dt``; ``q0``.
 
 Result (mm, rad, rad/s): ``mean_error``, ``max_error``, ``std_error`` (over the path),
-``kp``, ``ki``, ``q`` (per step), ``x_desired`` (the desired tool position per step, mm),
-``errors`` (per step, the distance between ``x_desired`` and the tool), ``joint_speed_max``,
+``kp``, ``ki``, ``q`` (per step), ``x_desired`` and ``x_actual`` (the desired and the reached
+tool position per step), ``errors`` (per step, their distance), ``joint_speed_max``,
 ``saturated_steps``, ``t``, ``controller``, ``tune``, ``fitness_history`` (tuning) and, when
 ``runs > 1``, ``runs`` (per-run ``seed``, ``kp``, ``ki``, ``mean_error``, ``max_error``,
 ``std_error``) with ``summary`` (max/mean/std over runs) -- the top-level trajectory is the
@@ -171,6 +171,7 @@ def run_tracking(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
         "seed": seed_best,
         "t": sim.t.tolist(),
         "x_desired": sim.x_desired.tolist(),
+        "x_actual": (sim.x_desired - sim.error_xyz[best]).tolist(),
         "q": sim.q[best].tolist(),
         "errors": sim.error[best].tolist(),
         "joint_speed_max": float(sim.joint_speed_max[best]),

@@ -84,6 +84,7 @@ def test_job_function_default_and_tuned_pi():
         actual = fk(builtin_model("hyper_redundant_9dof"), np.array(out["q"]))[:, :3, 3]
         np.testing.assert_allclose(np.linalg.norm(x_d - actual, axis=1), out["errors"],
                                    atol=1e-9)
+        np.testing.assert_allclose(out["x_actual"], actual, atol=1e-9)
     assert default["max_error"] < tuned["max_error"]
     assert len(tuned["runs"]) == 2 and [r["seed"] for r in tuned["runs"]] == [0, 1]
     assert tuned["summary"]["max"] >= tuned["max_error"]
@@ -102,3 +103,49 @@ def test_a_tuned_run_through_the_job_pool(client):
     out = client.get(f"/jobs/{job['id']}/result").json()
     assert out["tune"] == "hgso" and len(out["runs"]) == 2
     assert out["mean_error"] <= out["max_error"] and len(out["kp"]) == 2
+
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def _png_shape(content: bytes) -> tuple[int, ...]:
+    import io
+
+    from matplotlib.image import imread
+
+    return imread(io.BytesIO(content), format="png").shape
+
+
+@pytest.mark.skipif(not REGISTERED_FOR_WORKERS, reason="the kind is not shipped to workers")
+def test_plot_of_a_tracking_job_even_after_its_robot_is_deleted(client):
+    data = builtin_model("hyper_redundant_9dof").to_dict()
+    data["id"] = "snake_copy"
+    assert client.post("/robots", json=data).status_code == 201
+    r = submit(client, robot="snake_copy", task=LINE)
+    job = wait_for(client, r.json()["id"], timeout=60)
+    assert job["status"] == "succeeded", job["error"]
+    r = client.get(f"/jobs/{job['id']}/plot")
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"] == "image/png" and r.content[:8] == PNG_MAGIC
+    assert _png_shape(r.content)[:2] == (900, 800)  # four stacked panels, 8 x 9 in at 100 dpi
+    assert client.delete("/robots/snake_copy").status_code == 204
+    r2 = client.get(f"/jobs/{job['id']}/plot")  # the stored result still plots
+    assert r2.status_code == 200 and r2.content[:8] == PNG_MAGIC
+
+
+def test_plot_errors_name_the_job(client):
+    r = client.get("/jobs/nope/plot")
+    assert r.status_code == 404 and "nope" in r.text
+    # a long tuning run: not succeeded yet, so no plot (409), then cancelled
+    r = submit(client, task=LINE, controller={"kind": "pi"}, tune="hgso", runs=10)
+    job_id = r.json()["id"]
+    r = client.get(f"/jobs/{job_id}/plot")
+    assert r.status_code == 409 and "job_id" in str(r.json()["detail"])
+    client.delete(f"/jobs/{job_id}")
+    # a kind without a plot
+    r = client.post("/jobs", json={"kind": "workspace",
+                                   "params": {"robot": "glt_palletizer", "samples": 200}})
+    job = wait_for(client, r.json()["id"], timeout=60)
+    assert job["status"] == "succeeded", job["error"]
+    r = client.get(f"/jobs/{job['id']}/plot")
+    assert r.status_code == 422 and "workspace" in r.text and "tracking" in r.text

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Path, Request, Response
@@ -9,7 +10,7 @@ from pydantic import Field
 
 from ...jobs.kinds import KINDS
 from ...jobs.manager import JobManager, JobParamsError, JobStateError, QueueFullError
-from ..deps import require_api_key
+from ..deps import RegistryDep, require_api_key
 from ..errors import http_error, not_found
 from ..schemas import Body, JobRecordOut
 
@@ -79,6 +80,51 @@ def get_job_result(job_id: JobId, jobs: ManagerDep) -> Response:
     except JobStateError as exc:
         raise http_error(409, ["path", "job_id"], str(exc), "conflict") from None
     return Response(text, media_type="application/json")
+
+
+#: Job kinds ``GET /jobs/{id}/plot`` can draw.
+PLOTTABLE_KINDS = ("tracking",)
+
+
+@router.get("/{job_id}/plot", response_class=Response,
+            responses={200: {"content": {"image/png": {}}},
+                       404: {"description": "Unknown job"},
+                       409: {"description": "Not succeeded (yet)"},
+                       422: {"description": "A kind without a plot"}})
+def get_job_plot(job_id: JobId, jobs: ManagerDep, registry: RegistryDep) -> Response:
+    """A succeeded job's result as a PNG. ``tracking``: joint angles, joint speeds (limits
+    dashed), error per axis and tool error against time (paper 003, Figure 7)."""
+    from ...plots import tracking_png
+
+    try:
+        job = jobs.get(job_id)
+        text = jobs.result(job_id)
+    except KeyError:
+        raise not_found("job", job_id) from None
+    except JobStateError as exc:
+        raise http_error(409, ["path", "job_id"], str(exc), "conflict") from None
+    if job.kind not in PLOTTABLE_KINDS:
+        raise http_error(422, ["path", "job_id"], f"jobs of kind '{job.kind}' have no plot; "
+                         f"plots exist for {', '.join(PLOTTABLE_KINDS)}", "value_error")
+    result = json.loads(text)
+    if "x_actual" not in result:  # a result stored before the tool path was recorded
+        raise http_error(422, ["path", "job_id"], "this tracking result predates the "
+                         "recorded tool path; run the job again to plot it", "value_error")
+    dof = len(result["q"][0])
+    names, limits = [f"j{i + 1}" for i in range(dof)], None
+    try:
+        model = registry.get(result["robot"])
+    except KeyError:  # deleted since: plot without its joint names and speed limits
+        model = None
+    if model is not None and model.dof == dof:
+        names, limits = [j.name for j in model.joints], model.velocity_limits
+    tune = f", tuned by {result['tune'].upper()}" if result.get("tune") else ""
+    controller = {"pi": "PI", "default": "default (PI + feed-forward)"}.get(
+        result["controller"], result["controller"])
+    title = f"{result['robot']}: {result['task']['kind']} task, {controller} controller{tune}"
+    png = tracking_png(result["t"], result["q"], result["x_desired"], result["x_actual"],
+                       names, title, limits)
+    return Response(png, media_type="image/png")
 
 
 @router.delete("/{job_id}", response_model=JobRecordOut,
