@@ -12,15 +12,16 @@ costs ``N`` evaluations. This is Mirjalili's GWO, not the wolf pack algorithm of
 ``wolfpack.py``.
 
 The pack moves in groups of ``leader_refresh`` wolves and the leaders are refreshed after
-each group, as in the original's per-wolf loop where a wolf that finds a better point leads
-the wolves after it at once (``leader_refresh = n_wolves`` is the fully synchronous update
-of most vectorised codes). Groups of 5 out of 50 converge markedly faster on smooth
-functions and are no worse on multimodal ones: in ``benchmarks/bench_optimisers.py`` the
-median over 30 seeds beats mealpy's ``OriginalGWO`` on sphere, Rastrigin, Rosenbrock and
-Ackley (D = 10, 2550 evaluations), where the synchronous update lost on three of the four.
-The price is ``n_wolves / leader_refresh`` calls of the batched objective per iteration
-instead of one (the evaluations are the same): where one call has a large fixed cost, as the
-tracking simulation has, a tuning run takes about four times as long as with one batch.
+each group (an asynchronous update: a wolf that finds a better point leads the next group at
+once, where the original moves the whole pack on the leaders of the previous iteration;
+``leader_refresh = n_wolves`` is that synchronous update). Groups of 5 out of 50 converge
+markedly faster on smooth functions and are no worse on multimodal ones: in
+``benchmarks/bench_optimisers.py`` the median over 30 seeds beats mealpy's ``OriginalGWO``
+on sphere, Rastrigin, Rosenbrock and Ackley (D = 10, 2550 evaluations), where the
+synchronous update lost on three of the four. The price is ``n_wolves / leader_refresh``
+calls of the batched objective per iteration instead of one (the evaluations are the same):
+where one call has a large fixed cost, as the tracking simulation has, a tuning run takes
+about four times as long as with one batch.
 """
 
 from __future__ import annotations
