@@ -81,9 +81,8 @@ def tracking_png(
                                 "error per axis\n[mm]", "tool error\n[mm]")):
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
-    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
-    axes[2].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
-    axes[3].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    for ax in (axes[0], axes[2], axes[3]):
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     axes[-1].set_xlabel("time [s]")
     return _png(fig, title)
 

@@ -3,6 +3,8 @@ a tuned run through the job pool once the kind's module is in ``KIND_MODULES``."
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
@@ -149,3 +151,17 @@ def test_plot_errors_name_the_job(client):
     assert job["status"] == "succeeded", job["error"]
     r = client.get(f"/jobs/{job['id']}/plot")
     assert r.status_code == 422 and "workspace" in r.text and "tracking" in r.text
+
+
+def test_plot_of_a_result_stored_before_the_paths_were_kept_says_so(tmp_path):
+    from app.store import Store
+
+    store = Store.in_data_dir(tmp_path)
+    store.add_job("old", "tracking", {"robot": "hyper_redundant_9dof"}, {})
+    old = {"robot": "hyper_redundant_9dof", "task": LINE, "controller": "pi", "tune": None,
+           "t": [0.0, 0.1], "q": [[0.0] * 9] * 2, "errors": [0.0, 0.1]}
+    store.finish_job("old", "succeeded", result_json=json.dumps(old))
+    with TestClient(create_app(Settings(no_viewer=True, data_dir=tmp_path, workers=1))) as c:
+        r = c.get("/jobs/old/plot")
+        assert r.status_code == 422 and "run the job again" in r.text
+        assert c.get("/jobs/old/result").json() == old  # the stored result is untouched

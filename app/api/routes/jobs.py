@@ -107,7 +107,7 @@ def get_job_plot(job_id: JobId, jobs: ManagerDep, registry: RegistryDep) -> Resp
         raise http_error(422, ["path", "job_id"], f"jobs of kind '{job.kind}' have no plot; "
                          f"plots exist for {', '.join(PLOTTABLE_KINDS)}", "value_error")
     result = json.loads(text)
-    if "x_actual" not in result:  # a result stored before the tool path was recorded
+    if not {"x_desired", "x_actual"} <= result.keys():  # stored before the paths were kept
         raise http_error(422, ["path", "job_id"], "this tracking result predates the "
                          "recorded tool path; run the job again to plot it", "value_error")
     dof = len(result["q"][0])
