@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from kinematics.workspace import DEFAULT_SAMPLES
+
+from ..fields import Point3
 
 __all__ = [
     "MAX_FK_CONFIGS",
@@ -183,7 +185,6 @@ class JobRecordOut(BaseModel):
     attempts: int = Field(description="Times the job was started (restarts re-run it)")
 
 
-Point3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
 
 class DrillIKRequest(Body):

@@ -6,6 +6,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
+from ..fields import Coordinate, Point3
 from .schemas import Body, Matrix
 
 __all__ = [
@@ -60,16 +61,14 @@ class PlotRequest(TrajectoryRequest):
 
 class LinePath(Body):
     kind: Literal["line"]
-    start: list[float] | None = Field(
-        None, min_length=3, max_length=3, description="mm; default the tool position at q0"
-    )
-    end: list[float] = Field(min_length=3, max_length=3, description="mm")
+    start: Point3 | None = Field(None, description="mm; default the tool position at q0")
+    end: Point3 = Field(description="mm")
 
 
 class EllipsePath(Body):
     kind: Literal["ellipse"]
-    center: list[float] = Field(min_length=3, max_length=3, description="mm")
-    radii: list[float] = Field(min_length=2, max_length=2, description="(a, b) mm")
+    center: Point3 = Field(description="mm")
+    radii: list[Coordinate] = Field(min_length=2, max_length=2, description="(a, b) mm")
     normal: list[float] = Field([0.0, 0.0, 1.0], min_length=3, max_length=3)
     major: list[float] | None = Field(None, min_length=3, max_length=3,
                                       description="Direction of the first radius")

@@ -16,12 +16,11 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
+from ..fields import Point3 as Vec3
 from .kinds import JobKind, Params, Progress, register
 
 __all__ = ["SequenceParams", "MultiarmParams", "run_sequence", "run_multiarm"]
 
-Coordinate = Annotated[float, Field(ge=-1e7, le=1e7)]
-Vec3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3, description="[x, y, z] mm")]
 #: Most holes one job takes (sequence) / one face (multiarm).
 MAX_HOLES = 2000
 MAX_FACE_HOLES = 600

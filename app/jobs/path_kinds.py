@@ -16,14 +16,12 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
+from ..fields import Point3 as Vec3
 from .kinds import JobKind, Params, Progress, register
 
 __all__ = ["PathParams", "PathCompareParams", "run_path", "run_path_compare"]
 
 Algorithm = Literal["wolfpack_improved", "wolfpack", "ga", "aca", "afsa", "rrt_star", "auto"]
-Coordinate = Annotated[float, Field(ge=-1e9, le=1e9)]
-Vec3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3,
-                                         description="[x, y, z] mm")]
 #: Most obstacles in one scene.
 MAX_OBSTACLES = 1000
 #: Parameter names the planners take besides their optimiser's fields.

@@ -46,3 +46,8 @@ def test_drill_ik_errors(client):
     assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["path", "robot_id"]
     r = client.post("/robots/tunnel_drill_arm/drill-ik", json={"holes": [[1, 2]]})
     assert r.status_code == 422 and "holes" in r.json()["detail"][0]["loc"]
+    # beyond 10 km: refused before any arithmetic could overflow
+    r = client.post("/robots/tunnel_drill_arm/drill-ik", json={"holes": [[1e8, 0, 1e300]]})
+    assert r.status_code == 422
+    assert [e["loc"] for e in r.json()["detail"]] == [["body", "holes", 0, 0],
+                                                     ["body", "holes", 0, 2]]

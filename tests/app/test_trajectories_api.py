@@ -131,3 +131,6 @@ def test_cartesian_errors(client):
         "robot": "glt_palletizer", "path": {"kind": "line", "end": [1000, 0, 900]},
         "q0": [0.0] * 5})
     assert r.status_code == 422 and "q0" in r.json()["detail"][0]["loc"]
+    r = client.post("/trajectories/cartesian", json={
+        "robot": "glt_palletizer", "path": {"kind": "line", "end": [-4e245, 0, 0]}})
+    assert r.status_code == 422 and "end" in r.json()["detail"][0]["loc"]
