@@ -26,6 +26,7 @@ joint limits disagree.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -173,6 +174,13 @@ def _validate(name: str, **values: float) -> None:
         raise CylinderError("name", "must be a non-empty string")
 
 
+def _validate_fields(cylinder: Any) -> None:
+    """``_validate`` a cylinder dataclass: every field but ``name`` and ``joint``."""
+    _validate(cylinder.name, **{f.name: getattr(cylinder, f.name)
+                                for f in dataclasses.fields(cylinder)
+                                if f.name not in ("name", "joint")})
+
+
 class Mechanism(Protocol):
     """What ``CylinderSet`` needs of a mechanism driving one joint with k cylinders."""
 
@@ -289,11 +297,7 @@ class TriangleCylinder(_OneCylinder):
     upper: float
 
     def __post_init__(self) -> None:
-        _validate(
-            self.name, r1=self.r1, r2=self.r2, phi0=self.phi0, sign=self.sign,
-            min_length=self.min_length, max_length=self.max_length, lower=self.lower,
-            upper=self.upper,
-        )
+        _validate_fields(self)
 
     def phi(self, theta) -> np.ndarray:
         """Angle between the pin rays (rad): ``theta (*,) -> (*,)``."""
@@ -365,12 +369,7 @@ class FourBarCylinder(_OneCylinder):
     upper: float
 
     def __post_init__(self) -> None:
-        _validate(
-            self.name, l_hn=self.l_hn, l_kh=self.l_kh, l_mn=self.l_mn, l_km=self.l_km,
-            l_ng=self.l_ng, psi0=self.psi0, sign=self.sign, angle_gnh=self.angle_gnh,
-            min_length=self.min_length, max_length=self.max_length, lower=self.lower,
-            upper=self.upper,
-        )
+        _validate_fields(self)
 
     def _angles(self, theta) -> dict[str, np.ndarray]:
         """Every intermediate angle (rad) and length (mm) of the linkage, each ``(*,)``."""

@@ -396,3 +396,31 @@ def test_near_start_pose_to_cylinders():
         lo, hi = CYL.limits(name)
         assert 0 < lengths[name] - lo < 0.1 * (hi - lo)
     np.testing.assert_allclose(CYL.joints_from_lengths(lengths, res.q), res.q, atol=1e-9)
+
+
+TRIANGLE = dict(name="c", joint=1, r1=300.0, r2=400.0, phi0=1.0, sign=1, min_length=400.0,
+                max_length=600.0, lower=-0.5, upper=0.5)
+FOUR_BAR = dict(name="b", joint=3, l_hn=300.0, l_kh=200.0, l_mn=250.0, l_km=220.0,
+                l_ng=500.0, psi0=1.2, sign=1, angle_gnh=0.3, min_length=400.0,
+                max_length=700.0, lower=-0.5, upper=0.5)
+
+
+@pytest.mark.parametrize(
+    ("cls", "base", "change", "field"),
+    [
+        (TriangleCylinder, TRIANGLE, {"r1": 0.0}, "r1"),
+        (TriangleCylinder, TRIANGLE, {"phi0": math.nan}, "phi0"),
+        (TriangleCylinder, TRIANGLE, {"sign": 2}, "sign"),
+        (TriangleCylinder, TRIANGLE, {"min_length": 700.0}, "min_length"),
+        (TriangleCylinder, TRIANGLE, {"lower": 1.0}, "lower"),
+        (TriangleCylinder, TRIANGLE, {"name": ""}, "name"),
+        (FourBarCylinder, FOUR_BAR, {"l_ng": -1.0}, "l_ng"),
+        (FourBarCylinder, FOUR_BAR, {"angle_gnh": math.inf}, "angle_gnh"),
+        (FourBarCylinder, FOUR_BAR, {"max_length": 300.0}, "min_length"),
+    ],
+)
+def test_bad_cylinder_geometry_names_the_field(cls, base, change, field):
+    cls(**base)  # the base geometry is valid
+    with pytest.raises(CylinderError) as err:
+        cls(**{**base, **change})
+    assert err.value.field == field
