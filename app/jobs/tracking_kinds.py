@@ -24,6 +24,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, model_validator
 
+from ..fields import Coordinate
 from .kinds import JobKind, Params, Progress, register
 
 __all__ = ["TrackingParams", "run_tracking", "MAX_RUNS"]
@@ -31,7 +32,8 @@ __all__ = ["TrackingParams", "run_tracking", "MAX_RUNS"]
 #: Most runs one job may ask for (the paper's 30).
 MAX_RUNS = 30
 
-Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+#: A direction (scaled to unit length); bounded like every coordinate so its norm is finite.
+Vector3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3)]
 Size = Annotated[float, Field(gt=0, le=1000, description="mm")]
 Duration = Annotated[float, Field(gt=0, le=600, description="s")]
 

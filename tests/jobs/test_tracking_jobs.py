@@ -47,6 +47,7 @@ def submit(client, **params):
         ({"task": {"kind": "ellipse", "radii": [150.0, 0.0]}}, "radii"),
         ({"task": {"kind": "ellipse", "duration": 0.0}}, "duration"),
         ({"task": {"kind": "circle"}}, "task"),
+        ({"task": {"kind": "line", "direction": [1e300, 1e300, 0.0]}}, "direction"),
         ({"task": LINE, "tune": "hgso", "bounds": {"kp": [-1.0, 20.0]}}, "kp"),
         ({"task": LINE, "tune": "hgso", "bounds": {"ki": [50.0, 10.0]}}, "bounds"),
         ({"task": LINE, "controller": {"kind": "pi", "ki": -1.0}}, "ki"),
