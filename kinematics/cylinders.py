@@ -36,7 +36,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from .errors import KinematicsError
-from .model import RobotModel
+from .model import MAX_LENGTH_MM, RobotModel
 
 __all__ = [
     "CHECK_SAMPLES",
@@ -157,6 +157,8 @@ def _validate(name: str, **values: float) -> None:
     for key, v in values.items():
         if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
             raise CylinderError(key, f"must be a finite number, got {v!r}")
+        if abs(v) > MAX_LENGTH_MM:  # lengths in mm; angles are far smaller
+            raise CylinderError(key, f"must be within ±{MAX_LENGTH_MM:g}, got {v:g}")
     for key in ("r1", "r2", "l_hn", "l_kh", "l_mn", "l_km", "l_ng"):
         if key in values and values[key] <= 0:
             raise CylinderError(key, f"must be positive (mm), got {values[key]}")
@@ -170,8 +172,10 @@ def _validate(name: str, **values: float) -> None:
         )
     if not values["lower"] < values["upper"]:
         raise CylinderError("lower", "the joint range must have lower < upper")
-    if not name:
+    if not isinstance(name, str) or not name:
         raise CylinderError("name", "must be a non-empty string")
+    if len(name) > 200 or not name.isprintable():
+        raise CylinderError("name", "at most 200 printable characters (no control characters)")
 
 
 def _validate_fields(cylinder: Any) -> None:

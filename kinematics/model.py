@@ -21,6 +21,7 @@ product-of-exponentials models).
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, Literal
@@ -30,9 +31,21 @@ import numpy as np
 from .errors import KinematicsError
 from .transforms import rigidity_error
 
-__all__ = ["Joint", "RobotModel", "ModelError", "MAX_DOF"]
+__all__ = ["Joint", "RobotModel", "ModelError", "MAX_DOF", "MAX_LENGTH_MM", "MAX_ANGLE_RAD",
+           "MAX_JOINT_SPEED", "MAX_NAME_LENGTH", "ID_PATTERN"]
 
 MAX_DOF = 32
+#: Largest length (mm) in a model: link lengths and offsets, prismatic limits, base and tool
+#: translations, screw points. 10 km is beyond any machine and keeps sums of squares finite.
+MAX_LENGTH_MM = 1e7
+#: Largest |angle| (rad) in a model: twists, joint angles, revolute limits and offsets.
+MAX_ANGLE_RAD = 8 * math.pi
+#: Largest joint speed limit (rad/s or mm/s).
+MAX_JOINT_SPEED = 1e6
+#: Longest robot or joint name; names are printable text (they end up in URDF and the viewer).
+MAX_NAME_LENGTH = 200
+#: Robot ids: ASCII letters, digits, '_' and '-', 1 to 64 characters.
+ID_PATTERN = r"^[A-Za-z0-9_-]{1,64}$"
 Convention = Literal["mdh", "sdh", "poe"]
 JointType = Literal["revolute", "prismatic"]
 
@@ -193,11 +206,9 @@ class RobotModel:
         model_id = data.get("id")
         if not isinstance(model_id, str) or not model_id:
             raise ModelError("id", "must be a non-empty string")
-        if len(model_id) > 64 or not all(c.isalnum() or c in "_-" for c in model_id):
-            raise ModelError("id", "use at most 64 letters, digits, '_' or '-'")
-        name = data.get("name", model_id)
-        if not isinstance(name, str):
-            raise ModelError("name", "must be a string")
+        if re.fullmatch(ID_PATTERN, model_id) is None:
+            raise ModelError("id", "use 1 to 64 ASCII letters, digits, '_' or '-'")
+        name = _name(data.get("name", model_id), "name")
         convention = data.get("convention", "mdh")
         if convention not in ("mdh", "sdh", "poe"):
             raise ModelError("convention", f"must be 'mdh', 'sdh' or 'poe', got {convention!r}")
@@ -232,7 +243,20 @@ def _frozen(values: list) -> np.ndarray:
     return arr
 
 
-def _number(value: Any, path: str, default: float | None = None) -> float:
+def _name(value: Any, path: str) -> str:
+    """A non-empty printable name (no control characters) of at most MAX_NAME_LENGTH."""
+    if not isinstance(value, str) or not value:
+        raise ModelError(path, "must be a non-empty string")
+    if len(value) > MAX_NAME_LENGTH:
+        raise ModelError(path, f"at most {MAX_NAME_LENGTH} characters, got {len(value)}")
+    if not value.isprintable():
+        raise ModelError(path, "must be printable text (no control characters)")
+    return value
+
+
+def _number(value: Any, path: str, default: float | None = None, *,
+            bound: float = MAX_LENGTH_MM, unit: str = "mm") -> float:
+    """A finite number within ``±bound`` (``default`` when missing, if there is one)."""
     if value is None:
         if default is None:
             raise ModelError(path, "is required")
@@ -241,13 +265,19 @@ def _number(value: Any, path: str, default: float | None = None) -> float:
         raise ModelError(path, f"must be a number, got {value!r}")
     if not math.isfinite(value):
         raise ModelError(path, "must be finite")
+    if abs(value) > bound:
+        raise ModelError(path, f"must be within ±{bound:g} {unit}, got {value:g}")
     return float(value)
 
 
-def _vector3(value: Any, path: str) -> tuple[float, float, float]:
+def _angle(value: Any, path: str, default: float | None = None) -> float:
+    return _number(value, path, default, bound=MAX_ANGLE_RAD, unit="rad")
+
+
+def _vector3(value: Any, path: str, bound: float = MAX_LENGTH_MM) -> tuple[float, float, float]:
     if not isinstance(value, (list, tuple)) or len(value) != 3:
         raise ModelError(path, "must be a list of 3 numbers")
-    vals = tuple(_number(v, f"{path}[{k}]") for k, v in enumerate(value))
+    vals = tuple(_number(v, f"{path}[{k}]", bound=bound) for k, v in enumerate(value))
     return vals  # type: ignore[return-value]
 
 
@@ -264,6 +294,8 @@ def pose_field(value: Any, path: str) -> np.ndarray:
             raise ModelError(path, f"must be 4x4, got shape {list(T.shape)}")
         if not np.all(np.isfinite(T)):
             raise ModelError(path, "must be finite")
+        if np.abs(T[:3, 3]).max() > MAX_LENGTH_MM:
+            raise ModelError(path, f"translation must be within ±{MAX_LENGTH_MM:g} mm")
         if rigidity_error(T) > 1e-6:
             raise ModelError(path, "is not a rigid transform (rotation not orthonormal)")
     T.setflags(write=False)
@@ -276,26 +308,26 @@ def _joint_from_dict(data: Any, path: str, convention: str, index: int) -> Joint
     unknown = set(data) - _JOINT_KEYS
     if unknown:
         raise ModelError(f"{path}.{sorted(unknown)[0]}", "unknown joint field")
-    name = data.get("name", f"j{index + 1}")
-    if not isinstance(name, str) or not name:
-        raise ModelError(f"{path}.name", "must be a non-empty string")
+    name = _name(data.get("name", f"j{index + 1}"), f"{path}.name")
     jtype = data.get("type", "revolute")
     if jtype not in ("revolute", "prismatic"):
         raise ModelError(f"{path}.type", f"must be 'revolute' or 'prismatic', got {jtype!r}")
-    lower = _number(data.get("lower"), f"{path}.lower")
-    upper = _number(data.get("upper"), f"{path}.upper")
+    joint_value = _angle if jtype == "revolute" else _number
+    lower = joint_value(data.get("lower"), f"{path}.lower")
+    upper = joint_value(data.get("upper"), f"{path}.upper")
     if not lower < upper:
         raise ModelError(f"{path}.lower", f"must be below upper ({lower} >= {upper})")
     if jtype == "revolute" and upper - lower > 8 * math.pi:
         raise ModelError(f"{path}.upper", "a revolute range wider than four turns is not physical")
     velocity = data.get("velocity")
     if velocity is not None:
-        velocity = _number(velocity, f"{path}.velocity")
+        velocity = _number(velocity, f"{path}.velocity", bound=MAX_JOINT_SPEED,
+                           unit="rad/s or mm/s")
         if velocity <= 0:
             raise ModelError(f"{path}.velocity", "must be positive")
     kwargs: dict[str, Any] = dict(
         name=name, type=jtype, lower=lower, upper=upper, velocity=velocity,
-        offset=_number(data.get("offset"), f"{path}.offset", 0.0),
+        offset=joint_value(data.get("offset"), f"{path}.offset", 0.0),
     )
     if convention == "poe":
         axis = np.array(_vector3(data.get("axis"), f"{path}.axis"))
@@ -307,7 +339,7 @@ def _joint_from_dict(data: Any, path: str, convention: str, index: int) -> Joint
             kwargs["point"] = _vector3(data.get("point"), f"{path}.point")
     else:
         kwargs["a"] = _number(data.get("a"), f"{path}.a", 0.0)
-        kwargs["alpha"] = _number(data.get("alpha"), f"{path}.alpha", 0.0)
+        kwargs["alpha"] = _angle(data.get("alpha"), f"{path}.alpha", 0.0)
         kwargs["d"] = _number(data.get("d"), f"{path}.d", 0.0)
-        kwargs["theta"] = _number(data.get("theta"), f"{path}.theta", 0.0)
+        kwargs["theta"] = _angle(data.get("theta"), f"{path}.theta", 0.0)
     return Joint(**kwargs)

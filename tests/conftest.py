@@ -3,11 +3,17 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
 
 DATA = Path(__file__).parent / "data"
+
+# The in-process test client calls itself "testserver": let the apps the tests build serve
+# that name. The Host allow-list's own defaults are tested with explicit settings
+# (tests/app/test_request_guard.py).
+os.environ.setdefault("KINOPLAN_ALLOWED_HOSTS", "*")
 
 
 @pytest.fixture(scope="session")

@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, StringConstraints
 
-from .schemas import Body, Matrix
+from ..fields import MAX_COORDINATE_MM, JointVector, pose_type
+from .schemas import Body
+
+#: A cylinder length in a request, mm.
+Length = Annotated[float, Field(gt=0, le=MAX_COORDINATE_MM)]
+CylinderName = Annotated[str, StringConstraints(min_length=1, max_length=200)]
 
 __all__ = [
     "CylindersRequest",
@@ -21,8 +26,8 @@ __all__ = [
 
 
 class CylindersRequest(Body):
-    q: list[float] = Field(description="One configuration (dof values), rad or mm per joint")
-    qd: list[float] | None = Field(
+    q: JointVector = Field(description="One configuration (dof values), rad or mm per joint")
+    qd: JointVector | None = Field(
         None, description="Joint speeds (dof values, rad/s or mm/s); adds each cylinder's speed"
     )
 
@@ -46,10 +51,10 @@ class CylindersResponse(BaseModel):
 
 
 class CylindersInverseRequest(Body):
-    lengths: dict[str, float] = Field(
-        min_length=1, description="Cylinder lengths (mm) by cylinder name"
+    lengths: dict[CylinderName, Length] = Field(
+        min_length=1, max_length=64, description="Cylinder lengths (mm) by cylinder name"
     )
-    q: list[float] | None = Field(
+    q: JointVector | None = Field(
         None, description="Values (dof) for the joints without a given cylinder; default 0"
     )
 
@@ -61,8 +66,8 @@ class CylindersInverseResponse(BaseModel):
 
 
 class PoseToCylindersRequest(Body):
-    pose: Matrix = Field(description="Target tool pose, 4x4, base frame, mm")
-    q0: list[float] | None = Field(
+    pose: pose_type(4) = Field(description="Target tool pose, 4x4, base frame, mm")
+    q0: JointVector | None = Field(
         None, description="Initial guess / preferred configuration (dof values)"
     )
 

@@ -6,8 +6,18 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
-from ..fields import Coordinate, Point3
-from .schemas import Body, Matrix
+from ..fields import (
+    Coordinate,
+    Direction3,
+    Duration,
+    JointValue,
+    Point3,
+    Rate,
+    bounded_list,
+    joint_batch,
+    pose_type,
+)
+from .schemas import Body
 
 __all__ = [
     "MAX_TRAJECTORY_SAMPLES",
@@ -21,8 +31,15 @@ __all__ = [
 
 #: Most samples one trajectory answer carries (422 above; raise dt).
 MAX_TRAJECTORY_SAMPLES = 50_000
+#: Most waypoints of one trajectory.
+MAX_WAYPOINTS = 1_000
+#: Largest joint rate given at a waypoint (rad/s or mm/s, and per s² for accelerations).
+MAX_WAYPOINT_RATE = 1e6
 
-PerJoint = list[float] | float
+PerJoint = bounded_list(Rate, 32, min_length=1) | Rate
+WaypointRate = Annotated[float, Field(ge=-MAX_WAYPOINT_RATE, le=MAX_WAYPOINT_RATE)]
+WaypointRates = bounded_list(bounded_list(WaypointRate, 32, min_length=1), MAX_WAYPOINTS)
+Step = Annotated[float, Field(ge=1e-6, le=3600.0, description="Sampling step, s")]
 
 
 class RateLimits(Body):
@@ -41,12 +58,15 @@ class TrajectoryRequest(Body):
         "waypoints; more use 'smooth'); bspline5: quintic B-spline at rest at both ends; "
         "smooth: C4 quintic spline through all waypoints",
     )
-    waypoints: list[list[float]] = Field(description="Joint waypoints, at least 2")
-    durations: list[float] = Field(description="Duration of each segment, s (one fewer)")
-    dt: float = Field(0.01, gt=0, description="Sampling step, s")
-    robot: str | None = Field(None, description="Check joint and speed limits of this robot")
-    velocities: list[list[float]] | None = Field(None, description="quintic: rates at waypoints")
-    accelerations: list[list[float]] | None = Field(None, description="quintic: at waypoints")
+    waypoints: joint_batch(MAX_WAYPOINTS) = Field(
+        description=f"Joint waypoints, 2 to {MAX_WAYPOINTS}", min_length=2)
+    durations: bounded_list(Duration, MAX_WAYPOINTS - 1, min_length=1) = Field(
+        description="Duration of each segment, s (one fewer than waypoints)")
+    dt: Step = 0.01
+    robot: str | None = Field(None, max_length=64,
+                              description="Check joint and speed limits of this robot")
+    velocities: WaypointRates | None = Field(None, description="quintic: rates at waypoints")
+    accelerations: WaypointRates | None = Field(None, description="quintic: at waypoints")
     limits: RateLimits | None = Field(None, description="Rate limits to check (and fit)")
     time_scaling: bool = Field(
         False,
@@ -68,21 +88,20 @@ class LinePath(Body):
 class EllipsePath(Body):
     kind: Literal["ellipse"]
     center: Point3 = Field(description="mm")
-    radii: list[Coordinate] = Field(min_length=2, max_length=2, description="(a, b) mm")
-    normal: list[float] = Field([0.0, 0.0, 1.0], min_length=3, max_length=3)
-    major: list[float] | None = Field(None, min_length=3, max_length=3,
-                                      description="Direction of the first radius")
+    radii: bounded_list(Coordinate, 2, min_length=2) = Field(description="(a, b) mm")
+    normal: Direction3 = [0.0, 0.0, 1.0]
+    major: Direction3 | None = Field(None, description="Direction of the first radius")
 
 
 class CartesianRequest(Body):
-    robot: str
+    robot: str = Field(max_length=64)
     path: Annotated[LinePath | EllipsePath, Field(discriminator="kind")]
-    q0: list[float] | None = Field(
+    q0: bounded_list(JointValue, 32, min_length=1) | None = Field(
         None, description="Start configuration; default the middle of the joint limits"
     )
-    rotation: Matrix | None = Field(
+    rotation: pose_type(3) | None = Field(
         None, description="Tool orientation (3x3) kept along the path; default that at q0"
     )
     points: int = Field(50, ge=2, le=2000, description="Waypoints along the path")
-    duration: float = Field(10.0, gt=0, description="s")
-    dt: float = Field(0.05, gt=0, description="s")
+    duration: Duration = 10.0
+    dt: Step = 0.05

@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from fastapi import APIRouter, Request
-from fastapi.responses import JSONResponse
+from fastapi import APIRouter, Request, Response
+from starlette.concurrency import run_in_threadpool
 
 from kinematics.drilling import check_drilling_structure, drill_ik
 from kinematics.errors import MethodUnavailableError
@@ -17,9 +17,12 @@ from kinematics.model import RobotModel
 from kinematics.transforms import pose_errors
 from kinematics.workspace import MAX_SAMPLES, sample_workspace, workspace_report
 
+from ...compute import ComputePool, encode_json
+from ...fields import MAX_JOINT_VALUE
 from ..deps import RobotDep
 from ..errors import conflict, http_error, invalid, too_large
 from ..schemas import (
+    MAX_DRILL_HOLES,
     MAX_FK_CONFIGS,
     MAX_FRAMES_CONFIGS,
     MAX_IK_POSES,
@@ -36,10 +39,10 @@ from ..schemas import (
 
 router = APIRouter(prefix="/robots/{robot_id}", tags=["kinematics"])
 
-#: Largest |joint value| accepted (rad or mm): far beyond any joint, short of float trouble.
-MAX_JOINT_VALUE = 1e6
-#: Most holes in one drill-ik call (413 above); a face has a few hundred.
-MAX_DRILL_HOLES = 2_000
+
+
+def compute(request: Request) -> ComputePool:
+    return request.app.state.compute
 
 
 def joint_rows(model: RobotModel, q: list, field: str = "q") -> tuple[np.ndarray, bool]:
@@ -66,8 +69,31 @@ def _finite_or_none(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
+#: Above these sizes a request is computed in a worker process (``app.compute``).
+HEAVY_FK_CONFIGS = 1_000
+HEAVY_FK_FRAMES = 100
+HEAVY_IK_POSES = 8
+HEAVY_WORKSPACE_SAMPLES = 50_000
+HEAVY_DRILL_HOLES = 32
+
+
+def _json(body: bytes) -> Response:
+    return Response(body, media_type="application/json")
+
+
+def _fk_answer(robot: RobotModel, q: np.ndarray, frames: str) -> bytes:
+    out: dict = {"within_limits": robot.within_limits(q).tolist()}
+    if frames == "all":
+        F = fk_frames(robot, q)
+        out["poses"] = F[:, -1].tolist()
+        out["frames"] = F.tolist()
+    else:
+        out["poses"] = fk(robot, q).tolist()
+    return encode_json(out)
+
+
 @router.post("/fk", response_model=FKResponse)
-def forward_kinematics(robot: RobotDep, body: FKRequest) -> JSONResponse:
+async def forward_kinematics(robot: RobotDep, body: FKRequest, request: Request) -> Response:
     """Tool pose (and optionally every link frame) for one or many configurations."""
     n = 1 if not body.q or not isinstance(body.q[0], list) else len(body.q)
     cap = MAX_FRAMES_CONFIGS if body.frames == "all" else MAX_FK_CONFIGS
@@ -75,14 +101,8 @@ def forward_kinematics(robot: RobotDep, body: FKRequest) -> JSONResponse:
         raise too_large(["q"], f"at most {cap} configurations per call with frames="
                         f"'{body.frames}', got {n}")
     q, _ = joint_rows(robot, body.q)
-    out: dict = {"within_limits": robot.within_limits(q).tolist()}
-    if body.frames == "all":
-        F = fk_frames(robot, q)
-        out["poses"] = F[:, -1].tolist()
-        out["frames"] = F.tolist()
-    else:
-        out["poses"] = fk(robot, q).tolist()
-    return JSONResponse(out)
+    heavy = n > (HEAVY_FK_FRAMES if body.frames == "all" else HEAVY_FK_CONFIGS)
+    return _json(await compute(request).run(heavy, _fk_answer, robot, q, body.frames))
 
 
 @router.post("/jacobian", response_model=JacobianResponse)
@@ -100,8 +120,14 @@ def jacobian_endpoint(robot: RobotDep, body: JacobianRequest) -> JacobianRespons
     )
 
 
+def _ik_answer(robot: RobotModel, T: np.ndarray, method: str, q0: np.ndarray | None,
+               all_solutions: bool) -> bytes:
+    results = solve_ik(robot, T, method=method, q0=q0, all_solutions=all_solutions)
+    return encode_json({"results": [_ik_json(r) for r in results]})
+
+
 @router.post("/ik", response_model=IKResponse)
-def inverse_kinematics(robot: RobotDep, body: IKRequest, request: Request) -> JSONResponse:
+async def inverse_kinematics(robot: RobotDep, body: IKRequest, request: Request) -> Response:
     """Joint solutions for one or many target poses; unreachable targets say why."""
     try:
         T = np.asarray(body.pose, dtype=float)
@@ -116,19 +142,27 @@ def inverse_kinematics(robot: RobotDep, body: IKRequest, request: Request) -> JS
     q0 = None
     if body.q0 is not None:
         q0 = joint_rows(robot, body.q0, "q0")[0][0]
+    heavy = T.shape[0] > HEAVY_IK_POSES
+    pool = compute(request)
     if body.method == "learned":
-        return _learned_ik(robot, T, request.app.state.jobs)
+        found = await run_in_threadpool(request.app.state.jobs.learned_ik, robot.id)
+        if found is None:
+            raise conflict(["method"], f"no learned IK is trained for robot '{robot.id}': "
+                           "submit an 'ik_train' job first")
+        try:
+            T = prepare_targets(T)
+        except ValueError as exc:
+            raise invalid(["pose"], str(exc)) from None
+        return _json(await pool.run(heavy, _learned_ik_answer, robot, T, *found))
     try:
-        results = solve_ik(
-            robot, T, method=body.method, q0=q0, all_solutions=body.all_solutions
-        )
+        return _json(await pool.run(heavy, _ik_answer, robot, T, body.method, q0,
+                                    body.all_solutions))
     except MethodUnavailableError as exc:
         if exc.method == "learned":
             raise conflict(["method"], str(exc)) from None
         raise invalid(["method"], str(exc)) from None
     except ValueError as exc:
         raise invalid(["pose"], str(exc)) from None
-    return JSONResponse({"results": [_ik_json(r) for r in results]})
 
 
 def _ik_json(r) -> dict:
@@ -146,17 +180,8 @@ def _ik_json(r) -> dict:
     }
 
 
-def _learned_ik(robot: RobotModel, T: np.ndarray, jobs) -> JSONResponse:
+def _learned_ik_answer(robot: RobotModel, T: np.ndarray, job_id: str, learned) -> bytes:
     """The learned map's guess polished by the numeric IK; both reported."""
-    found = jobs.learned_ik(robot.id)
-    if found is None:
-        raise conflict(["method"], f"no learned IK is trained for robot '{robot.id}': submit "
-                       "an 'ik_train' job first")
-    job_id, learned = found
-    try:
-        T = prepare_targets(T)
-    except ValueError as exc:
-        raise invalid(["pose"], str(exc)) from None
     guess, results = learned.polish(robot, T)
     dp, dr = pose_errors(fk(robot, guess), T)
     out = []
@@ -166,27 +191,34 @@ def _learned_ik(robot: RobotModel, T: np.ndarray, jobs) -> JSONResponse:
         item["learned"] = {"q": g.tolist(), "position_error": float(p),
                            "rotation_error": float(a), "model_job": job_id}
         out.append(item)
-    return JSONResponse({"results": out})
+    return encode_json({"results": out})
+
+
+def _workspace_answer(robot: RobotModel, samples: int, seed: int, voxel: float | None,
+                      return_points: int, projections: bool) -> bytes:
+    ws = sample_workspace(robot, samples, seed=seed, voxel=voxel)
+    return encode_json(workspace_report(ws, return_points, projections))
 
 
 @router.post("/workspace", response_model=WorkspaceResponse)
-def workspace(robot: RobotDep, body: WorkspaceRequest) -> JSONResponse:
+async def workspace(robot: RobotDep, body: WorkspaceRequest, request: Request) -> Response:
     """Monte Carlo workspace: extents, radial and vertical ranges, volume, points."""
     if body.samples > MAX_SAMPLES:
         raise too_large(
             ["samples"], f"at most {MAX_SAMPLES} samples per call, got {body.samples}; "
             "submit a 'workspace' job for more"
         )
+    heavy = body.samples > HEAVY_WORKSPACE_SAMPLES or body.return_points > 20_000
     try:
-        ws = sample_workspace(robot, body.samples, seed=body.seed, voxel=body.voxel)
+        return _json(await compute(request).run(
+            heavy, _workspace_answer, robot, body.samples, body.seed, body.voxel,
+            body.return_points, body.projections))
     except ValueError as exc:
         raise invalid(["voxel"], str(exc)) from None
-    out = workspace_report(ws, body.return_points, body.projections)
-    return JSONResponse(out)
 
 
 @router.post("/drill-ik", response_model=IKResponse)
-def drilling_ik(robot: RobotDep, body: DrillIKRequest) -> JSONResponse:
+async def drilling_ik(robot: RobotDep, body: DrillIKRequest, request: Request) -> Response:
     """Drilling arms: joint values that put the drill tip on each hole, drilling
     perpendicular to the face (the base x axis), feed joint fixed."""
     holes = np.asarray(body.holes, dtype=float)
@@ -203,8 +235,14 @@ def drilling_ik(robot: RobotDep, body: DrillIKRequest) -> JSONResponse:
         raise invalid(["roll"], f"outside the {roll.name} joint's limits "
                       f"[{roll.lower:.4g}, {roll.upper:.4g}] rad")
     try:
-        results = drill_ik(robot, holes, d7=body.d7, roll=body.roll)
+        return _json(await compute(request).run(len(holes) > HEAVY_DRILL_HOLES,
+                                                _drill_ik_answer, robot, holes, body.d7,
+                                                body.roll))
     except ValueError as exc:
         field = str(exc).split(":", 1)[0]
         raise invalid([field if field in ("d7", "roll") else "holes"], str(exc)) from None
-    return JSONResponse({"results": [_ik_json(r) for r in results]})
+
+
+def _drill_ik_answer(robot: RobotModel, holes: np.ndarray, d7: float, roll: float) -> bytes:
+    results = drill_ik(robot, holes, d7=d7, roll=roll)
+    return encode_json({"results": [_ik_json(r) for r in results]})

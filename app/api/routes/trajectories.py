@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from fastapi import APIRouter, Response
-from fastapi.responses import JSONResponse
+from fastapi import APIRouter, Request, Response
+from starlette.concurrency import run_in_threadpool
 
 from kinematics.fk import fk
 from kinematics.model import RobotModel
@@ -14,6 +14,7 @@ from planning import Limits, Trajectory, plan_trajectory
 from planning.cartesian import ellipse_points, follow_path, line_points
 from planning.time_scaling import fit_to_limits
 
+from ...compute import FieldProblem, encode_json
 from ...plots import trajectory_png
 from ..deps import RegistryDep
 from ..errors import http_error, invalid
@@ -49,9 +50,9 @@ def _per_joint(value, dof: int, field: str) -> np.ndarray | None:
     arr = np.broadcast_to(np.asarray(value, dtype=float), (dof,)) if np.ndim(value) == 0 \
         else np.asarray(value, dtype=float)
     if arr.shape != (dof,):
-        raise invalid(["limits", field], f"expected one value or {dof} values, got {arr.size}")
+        raise FieldProblem(["limits", field], f"expected one value or {dof} values, got {arr.size}")
     if np.any(arr <= 0):
-        raise invalid(["limits", field], "limits must be positive")
+        raise FieldProblem(["limits", field], "limits must be positive")
     return arr
 
 
@@ -72,28 +73,28 @@ def _limits(body: TrajectoryRequest, robot: RobotModel | None, dof: int) -> Limi
 def _check_rows(rows: list[list[float]], dof: int, field: str) -> None:
     for k, row in enumerate(rows):
         if len(row) != dof:
-            raise invalid([field, k], f"expected {dof} joint values, got {len(row)}")
+            raise FieldProblem([field, k], f"expected {dof} joint values, got {len(row)}")
 
 
-def _plan(body: TrajectoryRequest, registry) -> tuple[Trajectory, Limits, RobotModel | None]:
-    robot = _robot(registry, body.robot)
+def _plan(body: TrajectoryRequest,
+          robot: RobotModel | None) -> tuple[Trajectory, Limits, RobotModel | None]:
     if len(body.waypoints) < 2:
-        raise invalid(["waypoints"], "need at least 2 waypoints")
+        raise FieldProblem(["waypoints"], "need at least 2 waypoints")
     dof = robot.dof if robot is not None else len(body.waypoints[0])
     if dof == 0:
-        raise invalid(["waypoints", 0], "a waypoint needs at least one joint value")
+        raise FieldProblem(["waypoints", 0], "a waypoint needs at least one joint value")
     _check_rows(body.waypoints, dof, "waypoints")
     for name in ("velocities", "accelerations"):
         rows = getattr(body, name)
         if rows is not None:
             if len(rows) != len(body.waypoints):
-                raise invalid([name], f"need one row per waypoint ({len(body.waypoints)})")
+                raise FieldProblem([name], f"need one row per waypoint ({len(body.waypoints)})")
             _check_rows(rows, dof, name)
     if len(body.durations) != len(body.waypoints) - 1:
-        raise invalid(["durations"], f"need {len(body.waypoints) - 1} durations (one per "
+        raise FieldProblem(["durations"], f"need {len(body.waypoints) - 1} durations (one per "
                       f"segment), got {len(body.durations)}")
     if any(d <= 0 for d in body.durations):
-        raise invalid(["durations"], "every duration must be positive")
+        raise FieldProblem(["durations"], "every duration must be positive")
     limits = _limits(body, robot, dof)
     try:
         traj = plan_trajectory(body.method, body.waypoints, body.durations,
@@ -101,11 +102,13 @@ def _plan(body: TrajectoryRequest, registry) -> tuple[Trajectory, Limits, RobotM
         if body.time_scaling:
             rests = body.velocities is None and body.accelerations is None
             traj = fit_to_limits(traj, limits, per_segment=traj.method == "quintic" and rests)
+    except FieldProblem:
+        raise
     except ValueError as exc:
-        raise invalid([_field_of(str(exc))], str(exc)) from None
+        raise FieldProblem([_field_of(str(exc))], str(exc)) from None
     n = math.floor(traj.duration / body.dt + 1e-9) + 2
     if n > MAX_TRAJECTORY_SAMPLES:
-        raise invalid(["dt"], f"dt = {body.dt} s over {traj.duration:.6g} s gives about {n} "
+        raise FieldProblem(["dt"], f"dt = {body.dt} s over {traj.duration:.6g} s gives about {n} "
                       f"samples; at most {MAX_TRAJECTORY_SAMPLES}: use a larger dt")
     return traj, limits, robot
 
@@ -134,18 +137,50 @@ def _report(traj: Trajectory, limits: Limits, robot: RobotModel | None, dt: floa
     }
 
 
+#: Above this many samples (or waypoints) a trajectory is computed in a worker process.
+HEAVY_SAMPLES = 5_000
+HEAVY_WAYPOINTS = 100
+
+
+def _heavy(body: TrajectoryRequest) -> bool:
+    samples = sum(body.durations) / body.dt
+    return samples > HEAVY_SAMPLES or len(body.waypoints) > HEAVY_WAYPOINTS or \
+        body.time_scaling
+
+
+async def _computed(request: Request, heavy: bool, fn, *args) -> bytes:
+    """``fn(*args)`` on the compute pool; a ``FieldProblem`` answers 422 naming its field."""
+    try:
+        return await request.app.state.compute.run(heavy, fn, *args)
+    except FieldProblem as exc:
+        raise invalid(exc.loc, exc.msg) from None
+
+
+def _plan_answer(body: TrajectoryRequest, robot: RobotModel | None) -> bytes:
+    traj, limits, robot = _plan(body, robot)
+    return encode_json(_report(traj, limits, robot, body.dt))
+
+
 @router.post("")
-def plan(body: TrajectoryRequest, registry: RegistryDep) -> JSONResponse:
+async def plan(body: TrajectoryRequest, registry: RegistryDep, request: Request) -> Response:
     """Plan a joint trajectory; sampled q, q̇, q̈, jerk with continuity and limit reports."""
-    traj, limits, robot = _plan(body, registry)
-    return JSONResponse(_report(traj, limits, robot, body.dt))
+    robot = await run_in_threadpool(_robot, registry, body.robot)
+    answer = await _computed(request, _heavy(body), _plan_answer, body, robot)
+    return Response(answer, media_type="application/json")
 
 
 @router.post("/plot", response_class=Response,
              responses={200: {"content": {"image/png": {}}}})
-def plot(body: PlotRequest, registry: RegistryDep) -> Response:
+async def plot(body: PlotRequest, registry: RegistryDep, request: Request) -> Response:
     """The same trajectory as a PNG: position, velocity, acceleration and jerk panels."""
-    traj, _, robot = _plan(body, registry)
+    robot = await run_in_threadpool(_robot, registry, body.robot)
+    # Drawing holds the interpreter for a while whatever the size: always in a worker.
+    png = await _computed(request, True, _plot_answer, body, robot)
+    return Response(png, media_type="image/png")
+
+
+def _plot_answer(body: PlotRequest, robot: RobotModel | None) -> bytes:
+    traj, _, robot = _plan(body, robot)
     samples = traj.sample(body.dt)
     if robot is not None:
         names = [j.name for j in robot.joints]
@@ -153,18 +188,28 @@ def plot(body: PlotRequest, registry: RegistryDep) -> Response:
     else:
         names = [f"j{i + 1}" for i in range(traj.dof)]
         units = ["rad"] * traj.dof
-    png = trajectory_png(samples, names, units, body.title or f"{traj.method} trajectory",
-                         traj.breaks[traj.waypoint_index])
-    return Response(png, media_type="image/png")
+    return trajectory_png(samples, names, units, body.title or f"{traj.method} trajectory",
+                          traj.breaks[traj.waypoint_index])
+
+
+#: Above this many path points a Cartesian request is computed in a worker process.
+HEAVY_POINTS = 20
 
 
 @router.post("/cartesian")
-def cartesian(body: CartesianRequest, registry: RegistryDep) -> JSONResponse:
+async def cartesian(body: CartesianRequest, registry: RegistryDep,
+                    request: Request) -> Response:
     """A straight line or an ellipse for the tool, mapped through IK into a joint trajectory,
     with how closely the tool follows the path."""
-    robot = _robot(registry, body.robot)
+    robot = await run_in_threadpool(_robot, registry, body.robot)
+    heavy = body.points > HEAVY_POINTS or body.duration / body.dt > HEAVY_SAMPLES
+    answer = await _computed(request, heavy, _cartesian_answer, body, robot)
+    return Response(answer, media_type="application/json")
+
+
+def _cartesian_answer(body: CartesianRequest, robot: RobotModel) -> bytes:
     if body.q0 is not None and len(body.q0) != robot.dof:
-        raise invalid(["q0"], f"expected {robot.dof} joint values, got {len(body.q0)}")
+        raise FieldProblem(["q0"], f"expected {robot.dof} joint values, got {len(body.q0)}")
     q0 = np.asarray(body.q0 if body.q0 is not None else robot.mid_configuration(), dtype=float)
     T0 = fk(robot, q0)
     if body.rotation is not None:
@@ -172,7 +217,7 @@ def cartesian(body: CartesianRequest, registry: RegistryDep) -> JSONResponse:
         R = np.asarray(rows, dtype=float) if all(len(r) == 3 for r in rows) else np.zeros(0)
         if R.shape != (3, 3) or np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or \
                 np.linalg.det(R) < 0:
-            raise invalid(["rotation"], "must be a 3x3 rotation matrix")
+            raise FieldProblem(["rotation"], "must be a 3x3 rotation matrix")
     else:
         R = T0[:3, :3]
     path = body.path
@@ -184,14 +229,14 @@ def cartesian(body: CartesianRequest, registry: RegistryDep) -> JSONResponse:
             pts = ellipse_points(path.center, path.radii, body.points, normal=path.normal,
                                  major=path.major)
     except ValueError as exc:
-        raise invalid(["path", _field_of(str(exc))], str(exc)) from None
+        raise FieldProblem(["path", _field_of(str(exc))], str(exc)) from None
     try:
         result = follow_path(robot, pts, R, body.duration, q0)
     except ValueError as exc:
-        raise invalid(["path"], f"the path cannot be followed: {exc}") from None
+        raise FieldProblem(["path"], f"the path cannot be followed: {exc}") from None
     n = math.floor(body.duration / body.dt + 1e-9) + 2
     if n > MAX_TRAJECTORY_SAMPLES:
-        raise invalid(["dt"], f"at most {MAX_TRAJECTORY_SAMPLES} samples: use a larger dt")
+        raise FieldProblem(["dt"], f"at most {MAX_TRAJECTORY_SAMPLES} samples: use a larger dt")
     out = _report(result.trajectory, Limits(lower=np.asarray(robot.lower),
                                             upper=np.asarray(robot.upper)), robot, body.dt)
     out["points"] = result.points.tolist()
@@ -201,4 +246,4 @@ def cartesian(body: CartesianRequest, registry: RegistryDep) -> JSONResponse:
         "mean_deviation": result.mean_deviation,
         "max_waypoint_error": float(result.waypoint_error.max()),
     }
-    return JSONResponse(out)
+    return encode_json(out)

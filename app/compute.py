@@ -1,0 +1,128 @@
+"""Heavy synchronous requests run in worker processes, never in the API's process.
+
+A large FK or IK batch, a two-million-sample workspace, a long trajectory or a plot holds the
+interpreter lock for up to seconds while it computes and encodes its answer. Run in the API
+process, eight of them at once stall every other request, ``/health`` included. Here such
+work runs in a small pool of worker processes (``compute_workers``, forked from a server that
+has numpy and the kinematics imported) and comes back as encoded bytes; the event loop only
+waits. Small requests (one pose, a few configurations) stay in the API's thread pool, where
+they cost microseconds instead of a round trip to another process.
+
+At most ``max_waiting`` heavy requests wait for a worker; beyond that the service answers
+503 with ``Retry-After`` instead of queueing without bound (anything bigger belongs in a
+job). A worker that dies (killed for memory, say) fails only the requests it held: they
+answer 503 and the pool is started afresh.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+import multiprocessing
+import threading
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from typing import Any
+
+from starlette.concurrency import run_in_threadpool
+
+__all__ = ["ComputePool", "ComputeBusy", "ComputeFailed", "FieldProblem", "encode_json"]
+
+log = logging.getLogger(__name__)
+
+#: Modules a compute worker imports once, before its first request.
+PRELOAD = ["numpy", "scipy", "kinematics.fk", "kinematics.ik", "kinematics.workspace"]
+
+
+class ComputeBusy(RuntimeError):
+    """Too many heavy requests are waiting already (answered 503 with Retry-After)."""
+
+
+class ComputeFailed(RuntimeError):
+    """The worker process running the request died (answered 503)."""
+
+
+class FieldProblem(ValueError):
+    """A request field the computation found wrong: ``loc`` (below ``body``) and a message.
+    Raised in a worker process, it comes back intact (it pickles by its arguments) and the
+    route answers 422 naming ``loc``."""
+
+    def __init__(self, loc: list, msg: str) -> None:
+        super().__init__(loc, msg)
+        self.loc = list(loc)
+        self.msg = msg
+
+    def __str__(self) -> str:
+        return self.msg
+
+
+def encode_json(content: Any) -> bytes:
+    """JSON as the service answers it (compact, UTF-8, no NaN)."""
+    return json.dumps(content, ensure_ascii=False, allow_nan=False,
+                      separators=(",", ":")).encode()
+
+
+def _warm() -> None:
+    """Run once in each new worker: import what requests use."""
+    import importlib
+
+    for name in PRELOAD:
+        importlib.import_module(name)
+
+
+class ComputePool:
+    """Runs ``fn(*args)`` in a worker process (``heavy``) or in the thread pool."""
+
+    def __init__(self, workers: int, max_waiting: int) -> None:
+        self.workers = max(1, int(workers))
+        self.max_waiting = max(1, int(max_waiting))
+        self._executor: ProcessPoolExecutor | None = None
+        self._lock = threading.Lock()
+        self._waiting = 0
+
+    @property
+    def waiting(self) -> int:
+        """Heavy requests submitted and not yet answered."""
+        return self._waiting
+
+    def _pool(self) -> ProcessPoolExecutor:
+        with self._lock:
+            if self._executor is None:
+                ctx = multiprocessing.get_context("forkserver")
+                self._executor = ProcessPoolExecutor(self.workers, mp_context=ctx,
+                                                     initializer=_warm)
+            return self._executor
+
+    def _discard(self, broken: ProcessPoolExecutor) -> None:
+        with self._lock:
+            if self._executor is broken:
+                self._executor = None
+        broken.shutdown(wait=False, cancel_futures=True)
+
+    async def run(self, heavy: bool, fn: Callable[..., Any], *args: Any) -> Any:
+        """``fn(*args)``: in a worker process when ``heavy``, else in the thread pool.
+        ``fn`` and its arguments must pickle (module-level function, plain data, models)."""
+        if not heavy:
+            return await run_in_threadpool(fn, *args)
+        if self._waiting >= self.max_waiting:
+            raise ComputeBusy(f"{self._waiting} large requests are being computed already; "
+                              "retry shortly, or submit a job")
+        self._waiting += 1
+        pool = self._pool()
+        try:
+            return await asyncio.wrap_future(pool.submit(fn, *args))
+        except BrokenProcessPool:
+            log.warning("a compute worker died; starting the pool afresh")
+            self._discard(pool)
+            raise ComputeFailed("the worker computing this request died (out of memory?); "
+                                "retry with a smaller request, or submit a job") from None
+        finally:
+            self._waiting -= 1
+
+    def shutdown(self) -> None:
+        with self._lock:
+            executor, self._executor = self._executor, None
+        if executor is not None:
+            executor.shutdown(wait=False, cancel_futures=True)
