@@ -32,6 +32,12 @@ def parse_args(argv: list[str] | None = None) -> Settings:
                    help="job pool size (default: number of cores, %(default)s)")
     p.add_argument("--jobs-backend", default=env.jobs_backend,
                    help="'local' or 'dask://HOST:PORT' (default %(default)s)")
+    p.add_argument("--allowed-hosts", default=env.allowed_hosts,
+                   help="comma-separated Host names the API answers ('*' = any; default: the "
+                   "loopback names when bound to loopback, any otherwise)")
+    p.add_argument("--allowed-origins", default=env.allowed_origins,
+                   help="comma-separated origins of the pages that may open the 3D viewer "
+                   "(default: the viewer's own addresses)")
     args = p.parse_args(argv)
     return Settings(**{**env.model_dump(), **vars(args)})
 
@@ -40,18 +46,30 @@ def main(argv: list[str] | None = None) -> int:
     import uvicorn
 
     from .main import create_app
+    from .server import guarded_protocol
+    from .store import StoreError
 
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     settings = parse_args(argv)
-    api = create_app(settings)
+    try:
+        api = create_app(settings)
+    except StoreError as exc:  # one line an operator can act on, not a traceback
+        print(f"kinoplan: {exc}", file=sys.stderr)
+        return 1
     if not settings.no_viewer:
         from web.viewer import Viewer
 
         # Same process as the API: the viewer sees the same robots and jobs (app.state).
-        api.state.viewer = Viewer.start(settings.host, settings.viewer_port, api.state)
-        log.info("3D viewer on http://%s:%d", settings.host, api.state.viewer.port)
+        # Its port checks Origin, and the API key when one is set (web.gate).
+        api.state.viewer = Viewer.start(settings.host, settings.viewer_port, api.state,
+                                        api_key=settings.api_key,
+                                        allowed_origins=settings.allowed_origins)
+        log.info("3D viewer on http://%s:%d%s", settings.host, api.state.viewer.port,
+                 "/?key=<API key>" if settings.api_key else "")
     try:
-        uvicorn.run(api, host=settings.host, port=settings.port, log_level="info")
+        uvicorn.run(api, host=settings.host, port=settings.port, log_level="info",
+                    http=guarded_protocol(settings.header_timeout_s, settings.idle_timeout_s),
+                    limit_concurrency=settings.max_connections)
     finally:
         if api.state.viewer is not None:
             api.state.viewer.stop()

@@ -26,3 +26,18 @@ class Settings(BaseSettings):
     api_key: str | None = None
     max_queued_jobs: int = Field(1000, ge=1)
     max_body_bytes: int = Field(64 * 1024 * 1024, ge=1024)
+    #: ``Host`` names served (comma-separated, ``*`` = any); unset: the loopback names when
+    #: bound to a loopback address, any name otherwise (see ``app.limits.host_allow_list``).
+    allowed_hosts: str | None = None
+    #: Seconds a client may take to send a request head, and may stay silent mid-body.
+    header_timeout_s: float = Field(10.0, gt=0, le=600)
+    idle_timeout_s: float = Field(30.0, gt=0, le=3600)
+    #: Open connections served at once (503 above).
+    max_connections: int = Field(512, ge=1)
+    #: Worker processes for heavy synchronous requests (large workspaces, FK/IK batches,
+    #: plots), and how many such requests may wait for one (503 beyond).
+    compute_workers: int = Field(2, ge=1, le=64)
+    max_waiting_computations: int = Field(32, ge=1)
+    #: Pages that may open the 3D viewer (comma-separated origins, e.g.
+    #: ``https://viewer.example.com``); unset: the viewer's own addresses (``web.gate``).
+    allowed_origins: str | None = None

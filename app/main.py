@@ -23,11 +23,12 @@ from .api.routes import (
     viewer,
 )
 from .api.schemas import ErrorOut
+from .compute import ComputeBusy, ComputeFailed, ComputePool
 from .config import Settings
 from .jobs.manager import JobManager
-from .limits import BodySizeLimit
+from .limits import RequestGuard, body_caps, host_allow_list
 from .registry import RobotRegistry
-from .store import Store
+from .store import Store, StoreError
 
 __all__ = ["create_app", "app"]  # noqa: F822 (``app`` is built lazily by __getattr__)
 
@@ -72,6 +73,22 @@ def simplify_errors(errors: Sequence[dict]) -> list[dict]:
     return plain
 
 
+#: Most errors one 422 lists; the rest are counted in a last item.
+MAX_ERRORS = 30
+
+
+def validation_answer(errors: Sequence[dict]) -> tuple[int, list[dict]]:
+    """Status and ``detail`` of a failed validation: at most ``MAX_ERRORS`` items (plus one
+    counting the rest); 413 when a list is over a documented per-call cap."""
+    items = simplify_errors(errors)
+    status = 413 if any(e["type"] == "too_large" for e in items) else 422
+    if len(items) > MAX_ERRORS:
+        rest = len(items) - MAX_ERRORS
+        items = [*items[:MAX_ERRORS], {"loc": [], "msg": f"and {rest} more errors",
+                                       "type": "too_many_errors"}]
+    return status, items
+
+
 def create_app(settings: Settings | None = None) -> FastAPI:
     """A new application with its own settings, robot registry and (optional) viewer."""
     settings = settings or Settings()
@@ -85,6 +102,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             api.state.jobs.stop()
+            api.state.compute.shutdown()
 
     api = FastAPI(title="kinoplan", version=__version__, description=DESCRIPTION,
                   lifespan=lifespan, responses=ERROR_RESPONSES)
@@ -94,7 +112,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.state.jobs = JobManager(api.state.store, api.state.registry, settings.jobs_backend,
                                 settings.workers, settings.max_queued_jobs)
     api.state.viewer = None
-    api.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
+    api.state.compute = ComputePool(settings.compute_workers, settings.max_waiting_computations)
     guarded = [Depends(require_api_key)]
     api.include_router(health.router)
     api.include_router(robots.router)
@@ -116,12 +134,45 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         return JSONResponse(status_code=exc.status_code, content={"detail": detail},
                             headers=getattr(exc, "headers", None))
 
+    @api.exception_handler(StoreError)
+    async def _store_error(request: Request, exc: StoreError) -> JSONResponse:
+        # The store's file is gone, corrupt or read-only, or the disk is full: the service
+        # cannot keep data until an operator acts. That is a 503, never a 500.
+        msg = f"the data store is unavailable: {exc.reason}"
+        return JSONResponse(status_code=503, headers={"Retry-After": "5"}, content={
+            "detail": [{"loc": ["service", "store"], "msg": msg, "type": "unavailable"}]})
+
+    @api.exception_handler(ComputeBusy)
+    @api.exception_handler(ComputeFailed)
+    async def _compute_unavailable(request: Request, exc: Exception) -> JSONResponse:
+        return JSONResponse(status_code=503, headers={"Retry-After": "2"}, content={
+            "detail": [{"loc": ["service", "compute"], "msg": str(exc), "type": "unavailable"}]})
+
     @api.exception_handler(RequestValidationError)
     async def _validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
-        # FastAPI's default, minus the echoed input: a rejected 100,000-row body should not
-        # come back in the error.
-        return JSONResponse(status_code=422, content={"detail": simplify_errors(exc.errors())})
+        # FastAPI's default, minus the echoed input (a rejected 100,000-row body should not
+        # come back in the error) and with at most MAX_ERRORS items.
+        status, detail = validation_answer(exc.errors())
+        return JSONResponse(status_code=status, content={"detail": detail})
 
+    # Host allow-list, JSON bodies, a body cap per route (published in the OpenAPI document
+    # as each operation's ``x-max-body-bytes``).
+    build_openapi = api.openapi
+
+    def openapi() -> dict:
+        if api.openapi_schema is None:
+            document = build_openapi()
+            caps = body_caps(document["paths"], settings.max_body_bytes)
+            for path, operations in document["paths"].items():
+                for method, operation in operations.items():
+                    if method in ("post", "put", "patch"):
+                        operation["x-max-body-bytes"] = caps[path]
+        return api.openapi_schema
+
+    api.openapi = openapi  # type: ignore[method-assign]
+    api.add_middleware(RequestGuard, max_bytes=settings.max_body_bytes,
+                       templates=lambda: openapi()["paths"],
+                       allowed_hosts=host_allow_list(settings.allowed_hosts, settings.host))
     return api
 
 

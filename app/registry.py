@@ -10,7 +10,7 @@ from kinematics.library import builtin_models
 from kinematics.model import RobotModel
 from kinematics.rigs import BUILTIN_RIG_IDS, Rig, builtin_rig
 
-from .store import DuplicateError, Store
+from .store import DuplicateError, Store, StoreError
 
 __all__ = ["RobotRegistry", "RobotConflictError", "ReadOnlyRobotError"]
 
@@ -33,9 +33,10 @@ class RobotRegistry:
     """The robots the service knows: the built-ins (read-only) and custom robots.
 
     Custom robots live in ``store`` and are parsed once into ``RobotModel``s kept in memory
-    (all loaded at construction). Without a store, custom robots last as long as the
-    registry. Thread-safe: writers hold a lock and publish a new dict, so readers never
-    lock and never see a half-made change.
+    (all loaded at construction, and again when the store starts using another file, e.g. a
+    restored backup). Without a store, custom robots last as long as the registry.
+    Thread-safe: writers (and a reload) hold a lock and publish a new dict, so readers
+    otherwise never lock and never see a half-made change.
     """
 
     def __init__(self, store: Store | None = None) -> None:
@@ -46,6 +47,7 @@ class RobotRegistry:
         }
         self._store = store
         self._lock = threading.Lock()
+        self._generation = store.generation if store is not None else 0
         self._custom: dict[str, RobotModel] = self._load() if store is not None else {}
 
     def _load(self) -> dict[str, RobotModel]:
@@ -65,15 +67,32 @@ class RobotRegistry:
             custom[row.id] = model
         return custom
 
+    def _current(self) -> dict[str, RobotModel]:
+        """The custom robots, loaded again first when the store has moved on to another file
+        or works again after it could not be read (its ``generation`` changed)."""
+        store = self._store
+        if store is not None and store.generation != self._generation:
+            with self._lock:
+                generation = store.generation
+                if generation != self._generation:
+                    try:
+                        self._custom = self._load()
+                    except StoreError:  # still unusable: serve what we have, retry later
+                        return self._custom
+                    self._generation = generation
+                    log.info("custom robots loaded again from the store (%d)",
+                             len(self._custom))
+        return self._custom
+
     def ids(self) -> list[str]:
         """Built-in ids first, then custom ones in the order they were added."""
-        return [*self._builtin, *self._custom]
+        return [*self._builtin, *self._current()]
 
     def get(self, robot_id: str) -> RobotModel:
         """The model ``robot_id``; ``KeyError`` if unknown."""
         model = self._builtin.get(robot_id)
         if model is None:
-            model = self._custom.get(robot_id)
+            model = self._current().get(robot_id)
         if model is None:
             raise KeyError(robot_id)
         return model
@@ -83,7 +102,7 @@ class RobotRegistry:
 
     def all(self) -> list[RobotModel]:
         """Every model, in the order of ``ids()``."""
-        return [*self._builtin.values(), *self._custom.values()]
+        return [*self._builtin.values(), *self._current().values()]
 
     def add(self, model: RobotModel) -> None:
         """Store and serve a custom robot; ``RobotConflictError`` if its id is taken."""
@@ -91,6 +110,7 @@ class RobotRegistry:
             raise RobotConflictError(model.id, f"'{model.id}' is a built-in robot id")
         # allow_nan=False: a model whose extra fields hold NaN could not be served as JSON.
         text = json.dumps(model.to_dict(), allow_nan=False)
+        self._current()
         with self._lock:
             if model.id in self._custom:
                 raise RobotConflictError(model.id, f"robot id '{model.id}' is taken")
@@ -108,6 +128,7 @@ class RobotRegistry:
         unknown. A stored row that was skipped at start-up (corrupt) can be deleted too."""
         if robot_id in self._builtin:
             raise ReadOnlyRobotError(f"'{robot_id}' is a built-in robot and cannot be deleted")
+        self._current()
         with self._lock:
             deleted = self._store.delete_robot(robot_id) if self._store is not None else False
             if robot_id not in self._custom and not deleted:

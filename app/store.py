@@ -5,21 +5,47 @@ run, so a later table (jobs) is one more entry there. The store is called from F
 thread pool: every call opens its own connection (cheap for a local file) and runs in one
 transaction, so a crash never leaves half a write, and WAL mode lets readers proceed while
 one writer commits.
+
+When the file becomes unusable (deleted, replaced by something that is not a database,
+corrupt, read-only, disk full) every call raises ``StoreError`` (the API answers 503) and
+the change is logged once. The store never creates the file again behind the operator's
+back: a vanished file stays an error until a file is back at the path. Whatever file is
+there then (a restored backup, a repaired copy, even an empty file) is picked up by the
+next call, with any missing migrations applied, without a restart.
 """
 
 from __future__ import annotations
 
 import json
+import logging
+import os
 import sqlite3
+import stat
+import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-__all__ = ["Store", "StoredRobot", "JobRecord", "DuplicateError", "STORE_FILENAME", "now_iso"]
+__all__ = ["Store", "StoredRobot", "JobRecord", "DuplicateError", "StoreError",
+           "STORE_FILENAME", "now_iso"]
+
+log = logging.getLogger(__name__)
 
 STORE_FILENAME = "kinoplan.sqlite3"
+#: Seconds a health check result is reused (``Store.health``).
+HEALTH_TTL_S = 1.0
+#: Busy timeout (s) of the health check's connection: a check never waits long on a lock.
+HEALTH_TIMEOUT_S = 0.5
+#: A failed write (disk full, read-only, I/O error) counts against the store's health for
+#: this many seconds after it was last seen, unless a later write succeeds first.
+WRITE_FAILURE_HOLD_S = 30.0
+#: Less free space than this on the store's file system makes the store unhealthy.
+MIN_FREE_BYTES = 1 << 20
+# SQLite primary result codes of a failed write: the file may still be readable.
+_WRITE_FAILURES = {sqlite3.SQLITE_FULL, sqlite3.SQLITE_READONLY, sqlite3.SQLITE_IOERR}
 
 # Applied in order, each once; entry k brings the schema to user_version k + 1.
 _MIGRATIONS: tuple[str, ...] = (
@@ -60,6 +86,18 @@ def now_iso() -> str:
 
 class DuplicateError(Exception):
     """A row with this id already exists."""
+
+
+class StoreError(Exception):
+    """The store cannot be used: its file is missing, not a database, corrupt, read-only, or
+    the disk is full. ``reason`` says why without the file's path; ``str()`` names both."""
+
+    def __init__(self, path: Path, reason: str, code: int | None = None) -> None:
+        super().__init__(f"cannot use the store at {path}: {reason}")
+        self.path = path
+        self.reason = reason
+        #: SQLite's primary result code, when SQLite reported the error.
+        self.code = code
 
 
 @dataclass(frozen=True)
@@ -109,42 +147,238 @@ class StoredRobot:
 
 
 class Store:
-    """The SQLite file at ``path`` (created with its directory if missing)."""
+    """The SQLite file at ``path`` (created with its directory if missing).
+
+    Construction raises ``StoreError`` when the file cannot be used (a directory or a
+    read-only file in its place, not a database, an unwritable data directory).
+    """
 
     def __init__(self, path: Path | str, *, timeout_s: float = 30.0) -> None:
         self.path = Path(path)
         self.timeout_s = timeout_s
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._migrate()
+        #: Bumped when the store starts using another file at its path (a restored backup) or
+        #: the file works again after it could not be read, so caches of rows reload.
+        self.generation = 0
+        self._uri = self.path.absolute().as_uri()
+        self._state_lock = threading.Lock()
+        self._identity: tuple[int, int] | None = None  # (device, inode) of the file in use
+        self._failure: str | None = None  # why the last call failed, until one succeeds
+        self._write_failure: tuple[float, str] | None = None  # (when, why) of a failed write
+        self._health_lock = threading.Lock()
+        self._health: tuple[float, str | None] | None = None  # (when, why unhealthy)
+        parent = self.path.parent
+        try:
+            parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            why = (f"{parent} is not a directory" if parent.exists() and not parent.is_dir()
+                   else f"cannot create the directory {parent}: {exc.strerror or exc}")
+            raise StoreError(self.path, why) from exc
+        try:
+            self._migrate(create=True)
+            self._identity = self._stat()
+            conn = self._open()
+            try:  # take the write lock once: a file SQLite may not write fails here
+                conn.execute("BEGIN IMMEDIATE")
+                conn.rollback()
+            finally:
+                conn.close()
+        except (sqlite3.Error, OSError) as exc:
+            raise self._error(exc) from exc
+        why = self._unwritable()
+        if why is not None:
+            raise StoreError(self.path, why)
 
     @classmethod
     def in_data_dir(cls, data_dir: Path | str) -> Store:
         """The service's store: ``<data_dir>/kinoplan.sqlite3``."""
         return cls(Path(data_dir) / STORE_FILENAME)
 
+    def _open(self, *, create: bool = False, timeout_s: float | None = None
+              ) -> sqlite3.Connection:
+        """A new connection to the file, which must exist unless ``create``."""
+        return sqlite3.connect(f"{self._uri}?mode={'rwc' if create else 'rw'}", uri=True,
+                               timeout=self.timeout_s if timeout_s is None else timeout_s)
+
     @contextmanager
-    def _connect(self) -> Iterator[sqlite3.Connection]:
-        """A fresh connection whose block is one transaction (commit, or roll back on error)."""
-        conn = sqlite3.connect(self.path, timeout=self.timeout_s)
+    def _connect(self, timeout_s: float | None = None) -> Iterator[sqlite3.Connection]:
+        """A fresh connection whose block is one transaction (commit, or roll back on error).
+
+        Errors that mean the file cannot be used are raised as ``StoreError``; integrity and
+        programming errors pass through unchanged."""
+        try:
+            conn = self._open_current(timeout_s)
+        except (StoreError, sqlite3.Error, OSError) as exc:
+            error = self._failed(exc)
+            if error is exc:
+                raise
+            raise error from exc
         try:
             with conn:
                 yield conn
+            wrote = conn.total_changes > 0
+        except (sqlite3.IntegrityError, sqlite3.ProgrammingError):
+            raise
+        except sqlite3.DatabaseError as exc:
+            raise self._failed(exc) from exc
+        finally:
+            conn.close()
+        self._succeeded(wrote)
+
+    def _migrate(self, *, create: bool = False) -> None:
+        """Bring the file to the latest schema; reads only when it is there already."""
+        conn = self._open(create=create)
+        try:
+            mode = conn.execute("PRAGMA journal_mode").fetchone()[0]
+            version = conn.execute("PRAGMA user_version").fetchone()[0]
+            if mode.lower() != "wal":
+                # WAL is a property of the file: set once, every later connection uses it.
+                conn.execute("PRAGMA journal_mode=WAL")
+            if version >= len(_MIGRATIONS):
+                return
+            with conn:
+                conn.execute("BEGIN IMMEDIATE")  # one process migrates at a time
+                version = conn.execute("PRAGMA user_version").fetchone()[0]
+                for k in range(version, len(_MIGRATIONS)):
+                    for statement in _MIGRATIONS[k].split(";"):
+                        if statement.strip():
+                            conn.execute(statement)
+                if version < len(_MIGRATIONS):
+                    conn.execute(f"PRAGMA user_version = {len(_MIGRATIONS)}")
         finally:
             conn.close()
 
-    def _migrate(self) -> None:
-        with self._connect() as conn:
-            # WAL is a property of the file: set once, every later connection uses it.
-            conn.execute("PRAGMA journal_mode=WAL")
-        with self._connect() as conn:
-            conn.execute("BEGIN IMMEDIATE")  # one process migrates at a time
-            version = conn.execute("PRAGMA user_version").fetchone()[0]
-            for k in range(version, len(_MIGRATIONS)):
-                for statement in _MIGRATIONS[k].split(";"):
-                    if statement.strip():
-                        conn.execute(statement)
-            if version < len(_MIGRATIONS):
-                conn.execute(f"PRAGMA user_version = {len(_MIGRATIONS)}")
+    # ---- health -------------------------------------------------------------------------
+    def _stat(self) -> tuple[int, int]:
+        """(device, inode) of the file at ``path``; StoreError unless it is a regular file."""
+        try:
+            st = os.stat(self.path)
+        except FileNotFoundError:
+            raise StoreError(self.path, "the store file is missing (deleted or moved)") from None
+        if not stat.S_ISREG(st.st_mode):
+            raise StoreError(self.path, "the store path is not a regular file")
+        return st.st_dev, st.st_ino
+
+    def _unwritable(self) -> str | None:
+        """Why the file or its directory cannot be written (None when both can)."""
+        if not os.access(self.path, os.W_OK):
+            return "the store file is read-only"
+        if not os.access(self.path.parent, os.W_OK | os.X_OK):
+            return "the data directory is read-only"
+        return None
+
+    def _error(self, exc: BaseException) -> StoreError:
+        """``exc`` (from SQLite or the file system) as a StoreError saying what is wrong."""
+        if isinstance(exc, StoreError):
+            return exc
+        code = getattr(exc, "sqlite_errorcode", None)
+        code = None if code is None else code & 0xFF  # primary result code
+        if self.path.is_dir():
+            reason = "the store path is a directory, not a database file"
+        elif code == sqlite3.SQLITE_CANTOPEN and not self.path.exists():
+            reason = "the store file is missing (deleted or moved)"
+        elif isinstance(exc, OSError):
+            reason = exc.strerror or str(exc)
+        else:
+            reason = str(exc) or type(exc).__name__
+        return StoreError(self.path, reason, code)
+
+    def _failed(self, exc: BaseException) -> StoreError:
+        """Record a failed call (logged once per distinct reason) and return its error."""
+        error = self._error(exc)
+        with self._state_lock:
+            if error.code in _WRITE_FAILURES:
+                self._write_failure = (time.monotonic(), error.reason)
+            changed = error.reason != self._failure
+            self._failure = error.reason
+            if changed:
+                self._health = None  # the next health check looks again
+        if changed:
+            log.warning("%s", error)
+        return error
+
+    def _succeeded(self, wrote: bool) -> None:
+        """A call worked: the store has recovered unless a write failed and none worked
+        since (a read-only file or a full disk still serve reads)."""
+        if self._failure is None and self._write_failure is None:
+            return
+        with self._state_lock:
+            failed_write = self._write_failure
+            if wrote or (failed_write is not None
+                         and time.monotonic() - failed_write[0] > WRITE_FAILURE_HOLD_S):
+                self._write_failure = None
+            if self._failure is None or self._write_failure is not None:
+                return
+            self._failure = None
+            self._health = None
+        log.warning("the store at %s works again", self.path)
+
+    def _open_current(self, timeout_s: float | None) -> sqlite3.Connection:
+        """A connection to the file now at ``path``, failing fast when there is none. After
+        a failure, when another file has taken the path (a restored backup) or the file
+        lacks tables (an emptied one), first apply the migrations it lacks."""
+        identity = self._stat()
+        conn = self._open(timeout_s=timeout_s)
+        try:
+            if (identity == self._identity and self._failure is None
+                    and conn.execute("PRAGMA user_version").fetchone()[0] >= len(_MIGRATIONS)):
+                return conn
+        except BaseException:
+            conn.close()
+            raise
+        conn.close()
+        with self._state_lock:  # rows may differ unless only writes were failing
+            reload_rows = self._failure is None or self._write_failure is None
+        self._migrate()
+        with self._state_lock:
+            replaced = identity != self._identity
+            if replaced or reload_rows:
+                self.generation += 1
+            self._identity = identity
+        if replaced:
+            log.warning("the store file at %s was replaced; using the new file", self.path)
+        return self._open(timeout_s=timeout_s)
+
+    @property
+    def health_snapshot(self) -> tuple[float, str | None] | None:
+        """The last health check as (``time.monotonic()`` when done, why the store is
+        unhealthy or None), without waiting; None when there is none to reuse (say the
+        store's state has changed since)."""
+        return self._health
+
+    def health(self, max_age_s: float = HEALTH_TTL_S) -> str | None:
+        """None when the store works, else why not. A real but cheap check: the file is
+        there and readable, it and its directory are writable, its file system has room,
+        and no write failed lately. A result is reused for ``max_age_s`` seconds."""
+        with self._health_lock:
+            last = self._health
+            if last is not None and time.monotonic() - last[0] < max_age_s:
+                return last[1]
+            why = self._check_health()
+            self._health = (time.monotonic(), why)
+            return why
+
+    def _check_health(self) -> str | None:
+        try:
+            with self._connect(timeout_s=HEALTH_TIMEOUT_S) as conn:
+                conn.execute("SELECT 1 FROM robots LIMIT 1").fetchall()
+                conn.execute("SELECT 1 FROM jobs LIMIT 1").fetchall()
+        except StoreError as exc:
+            if exc.code != sqlite3.SQLITE_BUSY:  # busy with a long write is not broken
+                return exc.reason
+        why = self._unwritable()
+        if why is not None:
+            return why
+        if hasattr(os, "statvfs"):
+            try:
+                fs = os.statvfs(self.path.parent)
+            except OSError as exc:
+                return exc.strerror or str(exc)
+            if fs.f_bavail * fs.f_frsize < MIN_FREE_BYTES:
+                return "no space left on the store's file system"
+        failed_write = self._write_failure
+        if failed_write is not None and time.monotonic() - failed_write[0] < WRITE_FAILURE_HOLD_S:
+            return failed_write[1]
+        return None
 
     # ---- robots -------------------------------------------------------------------------
     def put_robot(self, robot_id: str, model_json: str) -> StoredRobot:

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from kinematics.model import RobotModel
+from kinematics.workspace import MAX_SAMPLES
 
 from .scene import CylinderDrawing
 
@@ -28,14 +29,19 @@ __all__ = [
     "cylinder_table",
     "REVOLUTE_STEP_DEG",
     "PRISMATIC_STEP_MM",
+    "DEFAULT_SAMPLES",
+    "MIN_GUI_SAMPLES",
+    "MAX_GUI_SAMPLES",
 ]
 
 #: Slider steps: one arrow-key press moves a joint by this much.
 REVOLUTE_STEP_DEG = 0.5
 PRISMATIC_STEP_MM = 1.0
-#: Default Monte Carlo samples of the workspace button (the papers' 30,000).
+#: Default Monte Carlo samples of the workspace button (the papers' 30,000), and the range it
+#: offers: at most what one synchronous ``POST /robots/{id}/workspace`` call may sample.
 DEFAULT_SAMPLES = 30_000
-MAX_GUI_SAMPLES = 2_000_000
+MIN_GUI_SAMPLES = 100
+MAX_GUI_SAMPLES = MAX_SAMPLES
 
 HELP = ("Pick a robot, move the joints, or drag the gizmo at the tool (IK). "
         "`POST /viewer/show` shows robots and finished jobs here.")
@@ -88,7 +94,7 @@ class ControlPanel:
         with gui.add_folder("IK: drag the gizmo at the tool", order=5):
             self.ik = gui.add_markdown("The arm follows the gizmo where IK reaches it.")
         with gui.add_folder("Workspace", order=6):
-            self.samples = gui.add_number("Samples", DEFAULT_SAMPLES, min=100,
+            self.samples = gui.add_number("Samples", DEFAULT_SAMPLES, min=MIN_GUI_SAMPLES,
                                           max=MAX_GUI_SAMPLES, step=1000)
             self.run_workspace = gui.add_button("Run workspace", icon=None)
             self.progress = gui.add_progress_bar(0.0, visible=False, animated=True)

@@ -12,9 +12,15 @@ What a browser gets (http://host:port):
 * a transform gizmo at the tool: dragging it solves IK from the current configuration and the
   arm follows; where IK fails the panel says why and the arm keeps its last good pose;
 * a workspace button that runs a ``workspace`` job, shows its progress, then its point cloud
-  coloured by height with the extents;
+  coloured by height with the extents (one such job at a time, at most ``MAX_GUI_SAMPLES``,
+  the API's synchronous cap; jobs are submitted to the same manager, with the same checks, as
+  ``POST /jobs``);
 * finished jobs shown by ``POST /viewer/show {"job": id}`` (``web.results``), with a time
   slider and play/pause when the plan moves arms.
+
+Access: ``Viewer.start`` runs viser on an internal loopback port and serves the public port
+through ``web.gate``: with an API key the page and its websocket need ``/?key=<key>`` once (then
+a cookie), and requests from other sites' pages (``Origin``) are refused (403).
 
 Several tabs may watch at once: the scene and the panel are shared (all tabs see the same
 robot and plan, and any tab may drive them); each tab's camera is its own. Every change of
@@ -24,10 +30,13 @@ uvicorn's threads, and the viewer has its own threads for IK, playback and job p
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import logging
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -37,7 +46,8 @@ from kinematics.ik import solve_ik
 from kinematics.ik.result import IKResult
 from kinematics.model import RobotModel
 
-from .gui import ControlPanel
+from .gate import Gate, lock_websockets_server, new_secret
+from .gui import MAX_GUI_SAMPLES, MIN_GUI_SAMPLES, ControlPanel
 from .results import DRAWABLE_KINDS, Plan, plan_from_result
 from .scene import (
     MM_TO_M,
@@ -111,6 +121,7 @@ class Viewer:
         self._ik_wake = threading.Event()
         self._ik_last: IKResult | None = None
         self._workspace_job: str | None = None
+        self.gate: Gate | None = None
         self._options: tuple[str, ...] = ()
         self.current: dict | None = None
 
@@ -136,25 +147,54 @@ class Viewer:
 
     @classmethod
     def start(cls, host: str, port: int, state: ServiceState, *, environment_map: bool = True,
+              api_key: str | None = None, allowed_origins: str | Sequence[str] | None = None,
               ) -> Viewer:
-        """Start a viser server on ``host:port`` (0: any free port, see ``port``)."""
+        """Serve the viewer on ``host:port`` (0: any free port, see ``port``).
+
+        viser listens on an internal loopback port that answers only the front
+        (``web.gate.Gate``) on ``host:port``. With ``api_key`` the front asks for it
+        (``/?key=<key>`` once, then a cookie). ``allowed_origins`` (a list or a
+        comma-separated string; default: the viewer's own addresses) are the pages that may
+        open it. Without a key the viewer is open to any client that reaches the port, but
+        still not to other sites' pages."""
         import viser
 
-        # No label: the panel title then shows the connection state ("Connected").
-        server = viser.ViserServer(host=host, port=port, verbose=False)
-        return cls(server, state, environment_map=environment_map)
+        # No label: the panel title then shows the connection state ("Connected"). viser
+        # prints its own (internal) address; the service logs the public one instead.
+        with contextlib.redirect_stdout(io.StringIO()):
+            server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+        secret = new_secret()
+        try:
+            if not lock_websockets_server(server.get_port(), secret):
+                log.warning("viser's internal port %d could not be locked to the viewer's "
+                            "front: local clients may open it directly", server.get_port())
+            gate = Gate(host, port, server.get_port(), api_key=api_key,
+                        allowed_origins=allowed_origins, upstream_secret=secret).start()
+        except BaseException:
+            server.stop()
+            raise
+        try:
+            viewer = cls(server, state, environment_map=environment_map)
+        except BaseException:
+            gate.stop()
+            server.stop()
+            raise
+        viewer.gate = gate
+        return viewer
 
     @property
     def port(self) -> int:
-        """The port the server is bound to."""
-        return self.server.get_port()
+        """The public port (the front's; viser's own when started without one)."""
+        return self.gate.port if self.gate is not None else self.server.get_port()
 
     def stop(self) -> None:
-        """Stop the threads and the server."""
+        """Stop the threads, the front and the server."""
         self._stop.set()
         self._ik_wake.set()
         for t in self._threads:
             t.join(timeout=2.0)
+        if self.gate is not None:
+            self.gate.stop()
         self.server.stop()
 
     # ---- robots -----------------------------------------------------------------------
@@ -345,7 +385,7 @@ class Viewer:
 
         @g.run_workspace.on_click
         def _(event: Any) -> None:
-            self.run_workspace(int(g.samples.value))
+            self.run_workspace(g.samples.value)
 
         @g.time.on_update
         def _(event: Any) -> None:
@@ -412,23 +452,48 @@ class Viewer:
         self.select(options[0])
 
     # ---- jobs ---------------------------------------------------------------------------
-    def run_workspace(self, samples: int) -> str | None:
+    def run_workspace(self, samples: Any) -> str | None:
         """Submit a ``workspace`` job for the active arm; the tick loop follows it. Returns
-        the job id (None if the job manager refused it; the panel says why)."""
+        the job id, or None when it is not started (the panel says why): a workspace job the
+        viewer started is still queued or running (one at a time, whichever tab asked), the
+        sample count is not a whole number within ``MIN_GUI_SAMPLES..MAX_GUI_SAMPLES`` (the API's
+        synchronous cap), or the job manager refused it (full queue, bad parameters)."""
         with self._lock:
+            busy = self._workspace_in_flight()
+            if busy is not None:
+                self.gui.workspace.content = (
+                    f"**Not started**: workspace job `{busy}` is still running; wait for it "
+                    "(one workspace job at a time from the viewer).")
+                return None
+            count = _sample_count(samples)
+            if count is None:
+                self.gui.workspace.content = (
+                    f"**Not started**: samples must be a whole number from "
+                    f"{MIN_GUI_SAMPLES:,} to {MAX_GUI_SAMPLES:,}.")
+                return None
             model = self._arms[self._active].model
-        try:
-            job = self.jobs.submit("workspace", {"robot": model.id, "samples": int(samples)})
-        except Exception as exc:  # JobParamsError, QueueFullError: say why in the panel
-            with self._lock:
+            # Submitted under the lock: two clicks cannot both pass the check above.
+            try:
+                job = self.jobs.submit("workspace", {"robot": model.id, "samples": count})
+            except Exception as exc:  # JobParamsError, QueueFullError: say why in the panel
                 self.gui.workspace.content = f"**Not started**: {exc}"
-            return None
-        with self._lock:
+                return None
             self._workspace_job = job.id
             self.gui.progress.value = 0.0
             self.gui.progress.visible = True
-            self.gui.workspace.content = f"Job `{job.id}`: queued ({samples:,} samples)"
-        return job.id
+            self.gui.workspace.content = f"Job `{job.id}`: queued ({count:,} samples)"
+            return job.id
+
+    def _workspace_in_flight(self) -> str | None:
+        """The viewer's workspace job if it is still queued or running (under the lock)."""
+        job_id = self._workspace_job
+        if job_id is None:
+            return None
+        try:
+            status = self.jobs.get(job_id).status
+        except KeyError:
+            status = "vanished"
+        return job_id if status in ("queued", "running") else None
 
     def _poll_workspace(self) -> None:
         with self._lock:
@@ -569,6 +634,18 @@ class Viewer:
                     self.refresh_robots()
             except Exception:  # keep the loop alive; the panel shows job errors itself
                 log.exception("viewer tick failed")
+
+
+def _sample_count(value: Any) -> int | None:
+    """``value`` as a whole number of workspace samples the viewer may ask for, else None."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return None
+    if not (np.isfinite(number) and number == int(number)
+            and MIN_GUI_SAMPLES <= number <= MAX_GUI_SAMPLES):
+        return None
+    return int(number)
 
 
 def _matrix_from_wxyz(wxyz: np.ndarray) -> np.ndarray:

@@ -6,9 +6,16 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from kinematics.workspace import DEFAULT_SAMPLES
+from kinematics.workspace import DEFAULT_SAMPLES, MAX_SAMPLES
 
-from ..fields import Point3
+from ..fields import (
+    JointVector,
+    Point3,
+    bounded_list,
+    joint_input,
+    pose_input,
+    pose_type,
+)
 
 __all__ = [
     "MAX_FK_CONFIGS",
@@ -39,6 +46,12 @@ MAX_IK_POSES = 10_000
 MAX_RETURN_POINTS = 200_000
 
 Matrix = list[list[float]]
+#: A tool pose in a request: 4x4, every entry bounded.
+Pose = pose_type(4)
+#: Most holes in one drill-ik call (413 above); a face has a few hundred.
+MAX_DRILL_HOLES = 2_000
+#: Most seed for random sampling (fits a 32-bit generator seed comfortably).
+MAX_SEED = 2**32 - 1
 
 
 class Body(BaseModel):
@@ -47,10 +60,25 @@ class Body(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
+class StoreHealth(BaseModel):
+    ok: bool = Field(description="The store can be read and written")
+    error: str | None = Field(None, description="Why not, when it cannot")
+
+
+class JobsHealth(BaseModel):
+    ok: bool = Field(description="The job backend works (or has not been started yet)")
+    running: bool = Field(description="Its supervisor runs (false until the service starts it)")
+    error: str | None = Field(None, description="What is wrong, when something is")
+
+
 class Health(BaseModel):
-    status: Literal["ok"]
+    status: Literal["ok", "degraded"] = Field(
+        description="'ok' (HTTP 200) only when the store and the job backend both work, "
+        "else 'degraded' (HTTP 503)")
     version: str
     jobs_backend: str
+    store: StoreHealth
+    jobs: JobsHealth
 
 
 class JointSummary(BaseModel):
@@ -71,8 +99,9 @@ class RobotSummary(BaseModel):
 
 
 class FKRequest(Body):
-    q: list[float] | list[list[float]] = Field(
-        description="One configuration (dof values) or a list of them; rad or mm per joint"
+    q: joint_input(MAX_FK_CONFIGS) = Field(
+        description="One configuration (dof values) or a list of them; rad or mm per joint "
+        f"(at most {MAX_FK_CONFIGS} configurations, {MAX_FRAMES_CONFIGS} with frames='all')"
     )
     frames: Literal["tool", "all"] = Field(
         "tool", description="'all' also returns every link frame (base, after each joint, tool)"
@@ -85,7 +114,7 @@ class FKResponse(BaseModel):
 
 
 class JacobianRequest(Body):
-    q: list[float] = Field(description="One configuration (dof values)")
+    q: JointVector = Field(description="One configuration (dof values)")
 
 
 class JacobianResponse(BaseModel):
@@ -104,8 +133,9 @@ class JacobianResponse(BaseModel):
 
 
 class IKRequest(Body):
-    pose: Matrix | list[Matrix] = Field(description="Target tool pose (4x4) or a list of them")
-    q0: list[float] | None = Field(
+    pose: pose_input(MAX_IK_POSES) = Field(
+        description=f"Target tool pose (4x4) or a list of at most {MAX_IK_POSES}")
+    q0: JointVector | None = Field(
         None, description="Initial guess / preferred configuration; solutions nearest it first"
     )
     method: Literal["auto", "analytic", "numeric", "learned"] = "auto"
@@ -133,9 +163,11 @@ class IKResponse(BaseModel):
 
 class WorkspaceRequest(Body):
     samples: int = Field(
-        DEFAULT_SAMPLES, ge=1, description="Monte Carlo samples (413 above 2,000,000)"
+        DEFAULT_SAMPLES, ge=1, json_schema_extra={"maximum": MAX_SAMPLES},
+        description=f"Monte Carlo samples (413 above {MAX_SAMPLES:,}: submit a 'workspace' "
+        "job for more)",
     )
-    seed: int = Field(0, ge=0, description="Seed of the random joint samples")
+    seed: int = Field(0, ge=0, le=MAX_SEED, description="Seed of the random joint samples")
     voxel: float | None = Field(
         None, gt=0, le=1e6, description="Voxel edge (mm) of the volume estimate; default "
         "extent/30"
@@ -166,9 +198,10 @@ class WorkspaceResponse(BaseModel):
 
 
 class ViewerShowRequest(Body):
-    robot: str | None = Field(None, description="Robot id to show")
-    q: list[float] | None = Field(None, description="Configuration; default mid-limits")
-    job: str | None = Field(None, description="A finished job whose result to show")
+    robot: str | None = Field(None, max_length=64, description="Robot id to show")
+    q: JointVector | None = Field(None, description="Configuration; default mid-limits")
+    job: str | None = Field(None, max_length=64,
+                            description="A finished job whose result to show")
 
 
 class JobRecordOut(BaseModel):
@@ -188,8 +221,9 @@ class JobRecordOut(BaseModel):
 
 
 class DrillIKRequest(Body):
-    holes: list[Point3] = Field(
-        min_length=1, description="Hole positions [x, y, z] on the face, mm"
+    holes: bounded_list(Point3, MAX_DRILL_HOLES, min_length=1, what="holes",
+                         per_call=True) = Field(
+        description=f"Hole positions [x, y, z] on the face, mm (at most {MAX_DRILL_HOLES})"
     )
     d7: float = Field(4022.0, ge=-1e6, le=1e6,
                       description="Feed joint value, mm (paper 002: 4022)")

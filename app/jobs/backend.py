@@ -12,8 +12,13 @@ __all__ = ["SupervisedBackend"]
 
 log = logging.getLogger(__name__)
 
-#: Seconds to wait after a supervisor pass that failed before the next one.
+#: Seconds to wait after a supervisor pass that failed before the next one; the wait doubles
+#: with each further failure up to ``RETRY_MAX_S`` and starts again after a pass succeeds.
 RETRY_S = 0.1
+#: Longest wait between two failing supervisor passes.
+RETRY_MAX_S = 5.0
+#: Distinct error messages logged in one spell of failing passes.
+MAX_LOGGED_ERRORS = 10
 
 
 class SupervisedBackend:
@@ -22,6 +27,8 @@ class SupervisedBackend:
     ``stop``; ``_shutdown()`` releases what the backend holds."""
 
     name = "backend"
+    #: Why supervisor passes are failing ("Type: message"), None while they succeed.
+    failing: str | None = None
 
     def __init__(self, store: Store, workers: int) -> None:
         self.store = store
@@ -73,12 +80,32 @@ class SupervisedBackend:
         return asked
 
     def _loop(self) -> None:
+        """Run passes until ``stop``. A failing pass (say the store is unusable) is retried
+        with exponential back-off; the first failure is logged with its traceback, each new
+        message of the same spell in one line, and the recovery once."""
+        delay, since, logged = RETRY_S, 0.0, set()
         while not self._stop.is_set():
             try:
                 self._pass()
-            except Exception:  # the supervisor must survive anything: log, go on
-                log.exception("%s job supervisor pass failed", self.name)
-                time.sleep(RETRY_S)
+            except Exception as exc:  # the supervisor must survive anything: log, go on
+                message = f"{type(exc).__name__}: {exc}"
+                if self.failing is None:
+                    since, logged = time.monotonic(), {message}
+                    log.exception("%s job supervisor pass failed; retrying with back-off",
+                                  self.name)
+                elif message not in logged and len(logged) < MAX_LOGGED_ERRORS:
+                    logged.add(message)
+                    log.warning("%s job supervisor pass still failing: %s", self.name, message)
+                self.failing = message
+                # A stop, or a new job (so the store takes writes again), ends the wait early.
+                self._wake.wait(delay)
+                self._wake.clear()
+                delay = min(delay * 2, RETRY_MAX_S)
+                continue
+            if self.failing is not None:
+                log.warning("%s job supervisor recovered after %.1f s of failing passes",
+                            self.name, time.monotonic() - since)
+                self.failing, delay = None, RETRY_S
 
     def _pass(self) -> None:  # pragma: no cover - abstract
         raise NotImplementedError

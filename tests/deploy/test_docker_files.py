@@ -8,13 +8,15 @@ real build does, and its entry point starts (loopback, free ports, a temp data d
 GET /health answers and the HEALTHCHECK command itself exits 0. Last, the compose
 stack runs from the same virtualenv: the scheduler and a worker with the services' own
 commands (ports moved to free ones) and the API with the api service's environment; a job
-must run on the worker, which proves the workers import the installed packages.
+must run on the worker, which proves the workers import the installed packages, and the
+viewer must ask for the key the api service is given.
 """
 
 from __future__ import annotations
 
 import contextlib
 import fnmatch
+import http.client as http_client
 import json
 import os
 import re
@@ -205,6 +207,18 @@ def container_ports(service: dict) -> set[str]:
     return {str(p).rsplit(":", 1)[-1].split("/")[0] for p in service.get("ports", [])}
 
 
+def published(service: dict) -> list[tuple[str, str, str]]:
+    """``(host address, host port, container port)`` of each short-syntax port entry; the
+    address is "" when the entry names none (every interface)."""
+    out = []
+    for entry in service.get("ports", []):
+        parts = str(entry).split("/")[0].split(":")
+        assert len(parts) in (2, 3), f"unexpected port entry {entry!r}"
+        address = parts[0] if len(parts) == 3 else ""
+        out.append((address, parts[-2], parts[-1]))
+    return out
+
+
 def test_compose_services(compose, dockerfile):
     services = compose["services"]
     assert set(services) == {"api", "scheduler", "worker"}
@@ -220,8 +234,12 @@ def test_compose_services(compose, dockerfile):
     image_argv = entrypoint_argv(dockerfile)
     assert service_argv(api, image_argv) == image_argv
     assert {"8000", "8080"} <= container_ports(api)
-    assert "8000:8000" in api["ports"] and "8080:8080" in api["ports"]
+    assert ("127.0.0.1", "8000", "8000") in published(api)
+    assert ("127.0.0.1", "8080", "8080") in published(api)
     assert environment(api)["KINOPLAN_JOBS_BACKEND"] == "dask://scheduler:8786"
+    # The key and the viewer's allowed origins come from the shell or .env, empty by default.
+    assert environment(api)["KINOPLAN_API_KEY"] == "${KINOPLAN_API_KEY:-}"
+    assert environment(api)["KINOPLAN_ALLOWED_ORIGINS"] == "${KINOPLAN_ALLOWED_ORIGINS:-}"
     assert "kinoplan-data:/data" in api["volumes"]
     assert "scheduler" in api["depends_on"]
     assert api["healthcheck"]["test"][1:] == healthcheck_argv(
@@ -237,6 +255,16 @@ def test_compose_services(compose, dockerfile):
     assert "ports" not in worker, "a scaled worker cannot publish fixed host ports"
     assert "scheduler" in worker["depends_on"]
     assert "volumes" not in worker and "volumes" not in scheduler
+
+
+def test_compose_publishes_nothing_beyond_this_machine(compose):
+    """The API's writes and the viewer are open without a key: no service publishes a port
+    on every interface, or on an address taken from the environment."""
+    for name, service in compose["services"].items():
+        for address, host_port, target in published(service):
+            assert address == "127.0.0.1", f"{name} publishes {host_port}:{target} on " \
+                f"{address or 'every interface'}"
+        assert "${" not in str(service.get("ports", [])), name
 
 
 # ---- the image, emulated -----------------------------------------------------------------
@@ -398,7 +426,7 @@ def test_image_installs_starts_and_passes_its_healthcheck(image, dockerfile, tmp
 
 def test_compose_stack_runs_a_job_on_a_worker(image, compose, dockerfile, tmp_path):
     services = compose["services"]
-    sched_port, dash_port, worker_dash, api_port = (free_port() for _ in range(4))
+    sched_port, dash_port, worker_dash, api_port, viewer_port = (free_port() for _ in range(5))
 
     def moved(text: str) -> str:
         # Compose's names and fixed ports, moved to this machine's loopback and free ports.
@@ -430,7 +458,7 @@ def test_compose_stack_runs_a_job_on_a_worker(image, compose, dockerfile, tmp_pa
         # Entered last, so stopped first (as compose stops the api before its dependencies).
         log = tmp_path / "api.log"
         api_run_env = {**env, **api_env, "KINOPLAN_PORT": str(api_port)}
-        argv = argv_of("api") + ["--host", "127.0.0.1", "--no-viewer",
+        argv = argv_of("api") + ["--host", "127.0.0.1", "--viewer-port", str(viewer_port),
                                  "--data-dir", str(tmp_path / "data")]
         proc = stack.enter_context(started(argv, cwd=home, env=api_run_env, log=log))
         wait_until(lambda: healthy(api_port), proc, log, "the API")
@@ -448,3 +476,14 @@ def test_compose_stack_runs_a_job_on_a_worker(image, compose, dockerfile, tmp_pa
             record = http("GET", f"{base}/jobs/{record['id']}")[1]
         assert record["status"] == "succeeded", (record, (tmp_path / "worker.log").read_text())
         assert http("GET", f"{base}/jobs/{record['id']}/result") == (200, job["params"])
+
+        # The key opens the viewer too: 401 without it, a cookie and a redirect with it.
+        viewer = http_client.HTTPConnection("127.0.0.1", viewer_port, timeout=5)
+        viewer.request("GET", "/")
+        assert viewer.getresponse().status == 401, "the viewer is open despite the key"
+        viewer.close()
+        viewer = http_client.HTTPConnection("127.0.0.1", viewer_port, timeout=5)
+        viewer.request("GET", f"/?key={key}")
+        answer = viewer.getresponse()
+        assert answer.status == 303 and "HttpOnly" in answer.headers["Set-Cookie"]
+        viewer.close()

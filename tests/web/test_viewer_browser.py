@@ -198,3 +198,31 @@ def test_a_path_job_in_the_browser(service, browser):
         _wait_position(page, f"{ROBOT}/tool", viewer.tool_position() * MM_TO_M)
         np.testing.assert_allclose(viewer.tool_position(), goal, atol=1.0)
     page.close()
+
+
+def test_a_keyed_viewer_in_a_browser(service, browser, tmp_path_factory):
+    """With an API key: a browser without it gets the 401 page; ``/?key=`` sets the cookie,
+    drops the key from the address, and the page connects and draws the robot."""
+    api, _ = service
+    key = "browser-test-key"
+    viewer = Viewer.start("127.0.0.1", 0, api.state, environment_map=False, api_key=key)
+    context = browser.new_context(viewport={"width": 900, "height": 600})
+    try:
+        page = context.new_page()
+        page.set_default_timeout(TIMEOUT_MS)
+        answer = page.goto(f"http://127.0.0.1:{viewer.port}/")
+        assert answer.status == 401
+        assert "?key=" in page.content()
+        answer = page.goto(f"http://127.0.0.1:{viewer.port}/?key={key}")
+        assert answer.status == 200
+        assert page.url == f"http://127.0.0.1:{viewer.port}/"
+        cookies = context.cookies()
+        assert len(cookies) == 1 and cookies[0]["httpOnly"] and key not in cookies[0]["value"]
+        page.bring_to_front()
+        page.get_by_text("Connected").wait_for()
+        page.wait_for_function(f"() => '{ROBOT}/tool' in window.__viserSceneTree.getState()")
+        tool = np.array(page.evaluate(NODE_POSITION, f"{ROBOT}/tool"))
+        np.testing.assert_allclose(tool, viewer.tool_position() * MM_TO_M, atol=1e-6)
+    finally:
+        context.close()
+        viewer.stop()
