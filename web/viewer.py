@@ -42,6 +42,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from app.store import StoreError
 from kinematics.ik import solve_ik
 from kinematics.ik.result import IKResult
 from kinematics.model import RobotModel
@@ -504,6 +505,11 @@ class Viewer:
             job = self.jobs.get(job_id)
         except KeyError:
             job = None
+        except StoreError as exc:  # the store is down: say so, poll again later
+            with self._lock:
+                self.gui.workspace.content = f"Job `{job_id}`: the data store is " \
+                                             f"unavailable ({exc.reason}); still waiting"
+            return
         with self._lock:
             if job is None or job.status in ("failed", "cancelled"):
                 why = "vanished" if job is None else f"{job.status}: {job.error or ''}"
@@ -615,6 +621,7 @@ class Viewer:
     def _tick_loop(self) -> None:
         last_refresh = last_poll = 0.0
         previous = time.monotonic()
+        last_error = ""
         while not self._stop.wait(TICK_S):
             now = time.monotonic()
             dt, previous = now - previous, now
@@ -632,8 +639,11 @@ class Viewer:
                 if now - last_refresh >= ROBOTS_REFRESH_S:
                     last_refresh = now
                     self.refresh_robots()
-            except Exception:  # keep the loop alive; the panel shows job errors itself
-                log.exception("viewer tick failed")
+                last_error = ""
+            except Exception as exc:  # keep the loop alive; the panel shows job errors itself
+                if str(exc) != last_error:  # once per distinct failure, not 30 times a second
+                    log.exception("viewer tick failed")
+                last_error = str(exc)
 
 
 def _sample_count(value: Any) -> int | None:

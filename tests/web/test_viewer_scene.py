@@ -542,3 +542,24 @@ def test_a_real_tracking_job_result_is_drawn(api):
     assert plan.motions[""].duration == pytest.approx(result["t"][-1] - result["t"][0])
     api.state.viewer.show_plan(plan)
     assert {"/plan/tracking/actual", "/plan/tracking/desired"} <= set(api.state.viewer.plan_nodes)
+
+
+def test_a_workspace_job_survives_a_store_outage(api, monkeypatch):
+    from app.store import StoreError
+
+    v = api.state.viewer
+    job_id = v.run_workspace(1500)  # queued: no lifespan, no pool
+    assert job_id is not None
+
+    def down(_job_id):
+        raise StoreError(api.state.store.path, "database disk image is malformed")
+
+    with monkeypatch.context() as m:
+        m.setattr(api.state.jobs, "get", down)
+        for _ in range(5):
+            v._poll_workspace()
+        assert "unavailable" in v.gui.workspace.content
+        assert "malformed" in v.gui.workspace.content
+    assert v._workspace_job == job_id  # still followed once the store is back
+    v._poll_workspace()
+    assert "queued" in v.gui.workspace.content
