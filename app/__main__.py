@@ -32,6 +32,9 @@ def parse_args(argv: list[str] | None = None) -> Settings:
                    help="job pool size (default: number of cores, %(default)s)")
     p.add_argument("--jobs-backend", default=env.jobs_backend,
                    help="'local' or 'dask://HOST:PORT' (default %(default)s)")
+    p.add_argument("--job-time-limit-s", type=float, default=env.job_time_limit_s,
+                   help="seconds a job may run, and the most one may ask for "
+                   "(default %(default)s)")
     p.add_argument("--allowed-hosts", default=env.allowed_hosts,
                    help="comma-separated Host names the API answers ('*' = any; default: the "
                    "loopback names when bound to loopback, any otherwise)")

@@ -26,6 +26,9 @@ class Settings(BaseSettings):
     api_key: str | None = None
     max_queued_jobs: int = Field(1000, ge=1)
     max_body_bytes: int = Field(64 * 1024 * 1024, ge=1024)
+    #: Seconds a job may run, and the most a job may ask for (``time_limit_s`` of POST /jobs);
+    #: a job still running then fails with "time limit of N s exceeded".
+    job_time_limit_s: float = Field(3600.0, ge=1, le=7 * 86_400)
     #: ``Host`` names served (comma-separated, ``*`` = any); unset: the loopback names when
     #: bound to a loopback address, any name otherwise (see ``app.limits.host_allow_list``).
     allowed_hosts: str | None = None

@@ -110,7 +110,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.state.store = Store.in_data_dir(settings.data_dir)
     api.state.registry = RobotRegistry(api.state.store)
     api.state.jobs = JobManager(api.state.store, api.state.registry, settings.jobs_backend,
-                                settings.workers, settings.max_queued_jobs)
+                                settings.workers, settings.max_queued_jobs,
+                                time_limit_s=settings.job_time_limit_s)
     api.state.viewer = None
     api.state.compute = ComputePool(settings.compute_workers, settings.max_waiting_computations)
     guarded = [Depends(require_api_key)]

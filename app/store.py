@@ -76,6 +76,10 @@ _MIGRATIONS: tuple[str, ...] = (
     );
     CREATE INDEX IF NOT EXISTS jobs_status ON jobs (status, seq);
     """,
+    """
+    ALTER TABLE jobs ADD COLUMN time_limit_s REAL;
+    CREATE INDEX IF NOT EXISTS jobs_kind ON jobs (kind, seq);
+    """,
 )
 
 
@@ -117,24 +121,36 @@ class JobRecord:
     error: str | None
     attempts: int
     cancel_requested: bool
+    #: Seconds the job may run (None: no limit, for jobs queued before limits existed).
+    time_limit_s: float | None = None
 
     def to_dict(self) -> dict:
         return {
             "id": self.id, "kind": self.kind, "params": self.params, "status": self.status,
             "progress": self.progress, "message": self.message, "created": self.created,
             "started": self.started, "finished": self.finished, "error": self.error,
-            "attempts": self.attempts,
+            "attempts": self.attempts, "time_limit_s": self.time_limit_s,
         }
 
 
 _JOB_COLUMNS = (
     "id, kind, params_json, status, progress, message, created, started, finished, error, "
-    "attempts, cancel_requested"
+    "attempts, cancel_requested, time_limit_s"
 )
 
 
 def _job(row: tuple) -> JobRecord:
-    return JobRecord(row[0], row[1], json.loads(row[2]), *row[3:11], bool(row[11]))
+    return JobRecord(row[0], row[1], json.loads(row[2]), *row[3:11], bool(row[11]), row[12])
+
+
+def _job_filter(status: str | None, kind: str | None) -> tuple[str, tuple]:
+    """The WHERE clause (with its arguments) selecting jobs of a status and a kind."""
+    terms = [(name, value) for name, value in (("status", status), ("kind", kind))
+             if value is not None]
+    if not terms:
+        return "", ()
+    return " WHERE " + " AND ".join(f"{name} = ?" for name, _ in terms), \
+        tuple(value for _, value in terms)
 
 
 @dataclass(frozen=True)
@@ -420,7 +436,8 @@ class Store:
 
     # ---- jobs ---------------------------------------------------------------------------
     def add_job(self, job_id: str, kind: str, params: dict, payload: dict,
-                max_queued: int | None = None) -> JobRecord | None:
+                max_queued: int | None = None, *,
+                time_limit_s: float | None = None) -> JobRecord | None:
         """Queue a job; None (nothing written) when ``max_queued`` jobs are already queued."""
         with self._connect() as conn:
             conn.execute("BEGIN IMMEDIATE")
@@ -430,9 +447,10 @@ class Store:
                 if queued >= max_queued:
                     return None
             conn.execute(
-                "INSERT INTO jobs (id, kind, params_json, payload_json, status, created) "
-                "VALUES (?, ?, ?, ?, 'queued', ?)",
-                (job_id, kind, json.dumps(params), json.dumps(payload), now_iso()),
+                "INSERT INTO jobs (id, kind, params_json, payload_json, status, created, "
+                "time_limit_s) VALUES (?, ?, ?, ?, 'queued', ?, ?)",
+                (job_id, kind, json.dumps(params), json.dumps(payload), now_iso(),
+                 time_limit_s),
             )
         return self.get_job(job_id)
 
@@ -445,16 +463,15 @@ class Store:
             raise KeyError(job_id)
         return _job(row)
 
-    def list_jobs(self, status: str | None = None, limit: int | None = None) -> list[JobRecord]:
-        """Jobs in submission order (optionally of one status, at most ``limit``)."""
-        sql = f"SELECT {_JOB_COLUMNS} FROM jobs"
-        args: tuple = ()
-        if status is not None:
-            sql += " WHERE status = ?"
-            args = (status,)
-        sql += " ORDER BY seq"
-        if limit is not None:
-            sql += f" LIMIT {int(limit)}"
+    def list_jobs(self, status: str | None = None, limit: int | None = None, *,
+                  kind: str | None = None, offset: int = 0) -> list[JobRecord]:
+        """Jobs in submission order (optionally of one status and one kind), skipping the
+        first ``offset`` of them, at most ``limit``."""
+        where, args = _job_filter(status, kind)
+        sql = f"SELECT {_JOB_COLUMNS} FROM jobs{where} ORDER BY seq"
+        if limit is not None or offset:
+            sql += " LIMIT ? OFFSET ?"
+            args += (-1 if limit is None else int(limit), int(offset))
         with self._connect() as conn:
             return [_job(r) for r in conn.execute(sql, args).fetchall()]
 
@@ -537,7 +554,9 @@ class Store:
                 "WHERE status = 'queued' AND cancel_requested = 1", (now_iso(),))
         return requeued, failed
 
-    def count_jobs(self, status: str) -> int:
+    def count_jobs(self, status: str | None = None, kind: str | None = None) -> int:
+        """Jobs (optionally of one status and one kind)."""
+        where, args = _job_filter(status, kind)
         with self._connect() as conn:
-            return conn.execute("SELECT COUNT(*) FROM jobs WHERE status = ?",
-                                (status,)).fetchone()[0]
+            return conn.execute(f"SELECT COUNT(*) FROM jobs{where}", args).fetchone()[0]
+

@@ -8,6 +8,13 @@ same two figures. Departures, both for accuracy: the pose enters as position / l
 and the first two columns of the rotation matrix (continuous, unlike roll-pitch-yaw, which
 jumps at ±180°), and the joints are scaled to their ranges.
 
+The quintic kernel needs a quadratic polynomial tail, and that tail is singular whenever the
+features obey a quadratic identity, as rotation columns always do (|x| = |y| = 1, x·y = 0):
+a map that learns the orientation too (any robot outside the drilling posture) therefore
+uses the thin-plate spline, whose linear tail those identities leave well posed. Samples
+whose features coincide (several joint solutions of one pose) would make the interpolation
+system singular as well: only the first of them is kept.
+
 A learned guess is good enough to start from, not to drill with: ``polish`` refines it with
 the numeric IK, and both errors are reported. "Relative joint error" here is the error as a
 fraction of the joint's range (the paper does not say what it divides by; dividing by the
@@ -33,6 +40,33 @@ __all__ = ["LearnedIK", "train_learned_ik", "TrainingReport", "pose_features"]
 
 #: Training samples each prediction draws on.
 NEIGHBORS = 128
+#: Kernel of the map when the features allow a quadratic tail, and the one used otherwise.
+KERNEL = "quintic"
+FALLBACK_KERNEL = "thin_plate_spline"
+#: Rows of the feature matrix the rank test looks at (identities hold on every row).
+RANK_TEST_ROWS = 4000
+#: Singular values below this fraction of the largest count as zero in the rank test.
+RANK_TOL = 1e-9
+
+
+def quadratic_tail_is_singular(X: np.ndarray) -> bool:
+    """Whether the polynomials of degree 2 in the columns of ``X (N, d)`` are linearly
+    dependent on its rows (e.g. rotation columns, whose squares sum to 1)."""
+    X = X[:RANK_TEST_ROWS]
+    X = (X - X.mean(axis=0)) / X.std(axis=0)
+    d = X.shape[1]
+    cols = [np.ones(len(X)), *X.T]
+    cols += [X[:, i] * X[:, j] for i in range(d) for j in range(i, d)]
+    if len(cols) > len(X):
+        return True
+    s = np.linalg.svd(np.column_stack(cols), compute_uv=False)
+    return bool(s[-1] <= RANK_TOL * s[0])
+
+
+def distinct_rows(X: np.ndarray) -> np.ndarray:
+    """Indices (ascending) of the first occurrence of each distinct row of ``X``."""
+    _, first = np.unique(X, axis=0, return_index=True)
+    return np.sort(first)
 
 
 def apply_drilling_rule(q: np.ndarray) -> np.ndarray:
@@ -69,11 +103,14 @@ class LearnedIK:
         # Features that never vary (e.g. the orientation in the drilling posture) carry no
         # information and would make the interpolant's polynomial part singular: drop them.
         varying = self.features.std(axis=0) > 1e-9
-        interp = RBFInterpolator(self.features[:, varying], self.targets,
-                                 kernel="quintic",
-                                 neighbors=min(NEIGHBORS, len(self.features)))
+        X = self.features[:, varying]
+        keep = distinct_rows(X)
+        X, Y = X[keep], self.targets[keep]
+        kernel = FALLBACK_KERNEL if quadratic_tail_is_singular(X) else KERNEL
+        interp = RBFInterpolator(X, Y, kernel=kernel, neighbors=min(NEIGHBORS, len(X)))
         object.__setattr__(self, "_interp", interp)
         object.__setattr__(self, "_varying", varying)
+        object.__setattr__(self, "kernel", kernel)
 
     def predict(self, model: RobotModel, T: np.ndarray) -> np.ndarray:
         """Joint guesses ``(N, dof)`` for poses ``(N, 4, 4)`` (clipped to the limits)."""

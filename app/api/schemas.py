@@ -216,6 +216,9 @@ class JobRecordOut(BaseModel):
     finished: str | None
     error: str | None
     attempts: int = Field(description="Times the job was started (restarts re-run it)")
+    time_limit_s: float | None = Field(
+        None, description="Seconds the job may run; past them it fails with 'time limit of "
+        "N s exceeded' (null: no limit, jobs queued before limits existed)")
 
 
 

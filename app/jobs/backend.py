@@ -112,3 +112,24 @@ class SupervisedBackend:
 
     def _shutdown(self) -> None:
         """Release processes, connections or clients (after the loop has ended)."""
+
+    # ---- time limits ------------------------------------------------------------------
+    @staticmethod
+    def _deadline(time_limit_s: float | None) -> float | None:
+        """When (``time.monotonic()``) a job with this limit, started now, must have ended;
+        None for a job without a limit."""
+        return None if time_limit_s is None else time.monotonic() + float(time_limit_s)
+
+    @staticmethod
+    def _overdue(deadlines: dict[str, float | None]) -> list[str]:
+        """The jobs among ``{job id: deadline}`` whose deadline has passed."""
+        now = time.monotonic()
+        return [job_id for job_id, at in deadlines.items() if at is not None and now >= at]
+
+    def _fail_over_time(self, job_id: str, time_limit_s: float) -> None:
+        """End a job stopped at its time limit: failed, the error saying so."""
+        from .caps import time_limit_message
+
+        self.store.finish_job(job_id, "failed", message="time limit exceeded",
+                              error=time_limit_message(time_limit_s))
+        log.info("job %s stopped at its time limit of %g s", job_id, time_limit_s)

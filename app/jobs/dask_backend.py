@@ -6,7 +6,9 @@ many jobs at a time as it has worker threads, so the cluster's size sets the thr
 A job reports progress through a Dask
 ``Variable`` the supervisor polls, and checks a cancel ``Event`` whenever it reports
 progress, so a running job stops within one progress step of a cancel (our kinds report at
-least every second); the future is cancelled as well.
+least every second); the future is cancelled as well. A job past its time limit (counted
+from its submission to the cluster) is failed at once with "time limit of N s exceeded" and
+stopped the same way as a cancelled one.
 
 Dask is an optional extra (``pip install ".[dask]"``); the embedded default never imports it.
 """
@@ -70,6 +72,7 @@ class DaskBackend(SupervisedBackend):
         self.address = address
         self.client = Client(address, timeout="10s", set_as_default=False)
         self._futures: dict[str, object] = {}
+        self._limits: dict[str, tuple[float | None, float | None]] = {}  # (limit, deadline)
 
     def capacity(self) -> int:
         """Jobs to keep in flight: the cluster's worker threads (at least ``workers``)."""
@@ -91,6 +94,7 @@ class DaskBackend(SupervisedBackend):
         Event(_names(job_id)[1], client=self.client).set()
 
     def _pass(self) -> None:
+        self._handle_time_limits()
         self._handle_cancels()
         self._start_jobs()
         self._collect()
@@ -107,6 +111,7 @@ class DaskBackend(SupervisedBackend):
             fut = self.client.submit(run_on_cluster, job.id, job.kind, payload,
                                      key=f"kinoplan-job-{job.id}-{job.attempts}", pure=False)
             self._futures[job.id] = fut
+            self._limits[job.id] = (job.time_limit_s, self._deadline(job.time_limit_s))
 
     def _collect(self) -> None:
         from distributed import Variable
@@ -123,6 +128,7 @@ class DaskBackend(SupervisedBackend):
                     self.store.set_progress(job_id, float(got[0]), str(got[1]))
                 continue
             self._futures.pop(job_id)
+            self._limits.pop(job_id, None)
             cancelled = self._take_cancel(job_id)
             if status == "finished":
                 self.store.finish_job(job_id, "succeeded", result_json=fut.result(),
@@ -136,11 +142,31 @@ class DaskBackend(SupervisedBackend):
                 else:
                     self.store.finish_job(job_id, "failed", message="failed",
                                           error=f"{type(exc).__name__}: {exc}")
-            for name in _names(job_id):
-                try:
-                    Variable(name, client=self.client).delete()
-                except Exception:  # noqa: BLE001 - Events have no delete; best effort
-                    pass
+            self._forget(job_id)
+
+    def _forget(self, job_id: str) -> None:
+        """Drop the job's progress variable from the scheduler."""
+        from distributed import Variable
+
+        for name in _names(job_id):
+            try:
+                Variable(name, client=self.client).delete()
+            except Exception:  # noqa: BLE001 - Events have no delete; best effort
+                pass
+
+    def _handle_time_limits(self) -> None:
+        """Fail the jobs past their time limit now; stop them as a cancel does."""
+        overdue = self._overdue({job_id: deadline
+                                 for job_id, (_, deadline) in self._limits.items()})
+        for job_id in overdue:
+            limit, _ = self._limits.pop(job_id)
+            fut = self._futures.pop(job_id, None)
+            self._signal_cancel(job_id)
+            if fut is not None:
+                fut.cancel()
+            self._take_cancel(job_id)
+            self._fail_over_time(job_id, limit or 0.0)
+            self._forget(job_id)
 
     def _handle_cancels(self) -> None:
         for job_id in self._cancel_requested(set(self._futures)):

@@ -5,7 +5,8 @@ Holes are validated here, at the API edge, so a bad hole list is a 422 naming th
 the hole (``holes[7]: duplicate of holes[2]``, ``holes.left[3]: ... out of reach of the left
 arm``): field validators reuse the messages of ``planning.sequencing.check_holes`` and
 ``planning.drilling.allocation``. Neither kind needs a robot (``needs_robot=False``):
-``multiarm`` names a built-in rig.
+``multiarm`` names a built-in rig. The algorithms' free-form parameters are checked against
+their bounded models (``planner_params``): every knob capped, 422 naming it.
 """
 
 from __future__ import annotations
@@ -14,43 +15,49 @@ import math
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    WithJsonSchema,
+    field_validator,
+    model_validator,
+)
 
 from ..fields import Point3 as Vec3
-from .kinds import JobKind, Params, Progress, register
+from .kinds import MAX_SEED, JobKind, Params, Progress, register
+from .planner_params import (
+    MOVE_PLANNER_KNOBS,
+    SEQUENCER_KNOBS,
+    knobs_schema,
+    move_planner_knobs,
+    sequencer_knobs,
+)
 
 __all__ = ["SequenceParams", "MultiarmParams", "run_sequence", "run_multiarm"]
 
 #: Most holes one job takes (sequence) / one face (multiarm).
 MAX_HOLES = 2000
 MAX_FACE_HOLES = 600
-#: Caps on the algorithms' size parameters, so one job cannot run for days.
-PARAM_CAPS = {"iterations": 20_000, "population": 2_000, "ants": 2_000, "kicks": 200_000,
-              "stall": 200_000, "restarts": 1_000, "max_steps": 100_000,
-              "max_iterations": 100_000, "shortcut": 10_000, "escape_steps": 10_000,
-              "max_escapes": 1_000, "stall_window": 100_000}
 Algorithm = Literal["iga", "aco", "aga", "auto"]
+
+#: JSON schemas of the free-form algorithm parameters: one bounded model per algorithm.
+SequencerKnobs = Annotated[dict[str, Any] | None, WithJsonSchema(knobs_schema(
+    SEQUENCER_KNOBS, "Sequencer parameters (defaults: paper 002's), by algorithm; see "
+    "planning.sequencing"))]
+PlannerKnobs = Annotated[dict[str, Any] | None, WithJsonSchema(knobs_schema(
+    MOVE_PLANNER_KNOBS, "Move planner parameters, by planner; see planning.drilling"))]
 
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
-def _capped(params: dict[str, Any] | None) -> dict[str, Any] | None:
-    for key, cap in PARAM_CAPS.items():
-        v = (params or {}).get(key)
-        if isinstance(v, (int, float)) and not isinstance(v, bool) and v > cap:
-            raise ValueError(f"{key}: at most {cap} in a job")
-    return params
-
-
-def _sequencer_params(v, algorithm):
+def _sequencer_params(v, algorithm, prefix: str = "params"):
     if v is None or algorithm is None:
         return v
-    from planning.sequencing import make_sequencer
-
-    make_sequencer(algorithm, _capped(v))
-    return v
+    return sequencer_knobs(algorithm, v, prefix)
 
 
 # ---- sequence --------------------------------------------------------------------------------
@@ -60,10 +67,8 @@ class SequenceParams(Params):
     start: Vec3 | None = Field(None, description="Where the drill starts (mm); default: the "
                                                  "first hole, drilled first")
     algorithm: Algorithm = "auto"
-    seed: int = Field(0, ge=0, le=2**32 - 1)
-    params: dict[str, Any] | None = Field(
-        None, description="Algorithm parameters (defaults: paper 002's), e.g. "
-                          "{\"iterations\": 400} for iga; see planning.sequencing")
+    seed: int = Field(0, ge=0, le=MAX_SEED)
+    params: SequencerKnobs = None
 
     @field_validator("holes")
     @classmethod
@@ -131,10 +136,10 @@ class MultiarmParams(Params):
         None, description="Holes per arm {\"left\": [[x, y, z], ...], ...} mm (rig frame)")
     face: FaceIn | None = Field(None, description="Or a generated face, allocated to the arms")
     planner: Literal["iapf", "rrt"] = "iapf"
-    planner_params: dict[str, Any] | None = None
+    planner_params: PlannerKnobs = None
     sequencer: Algorithm = "auto"
-    sequencer_params: dict[str, Any] | None = None
-    seed: int = Field(0, ge=0, le=2**32 - 1)
+    sequencer_params: SequencerKnobs = None
+    seed: int = Field(0, ge=0, le=MAX_SEED)
     balance: Literal["count", "work"] = "count"
     counts: dict[str, Annotated[int, Field(ge=0, le=MAX_FACE_HOLES)]] | None = None
     radii: dict[str, Annotated[float, Field(ge=0, le=5000)]] | None = Field(
@@ -171,15 +176,12 @@ class MultiarmParams(Params):
     def _planner_params(cls, v, info: ValidationInfo):
         if v is None or info.data.get("planner") is None:
             return v
-        from planning.drilling.multiarm import make_planner
-
-        make_planner(info.data["planner"], _capped(v))
-        return v
+        return move_planner_knobs(info.data["planner"], v)
 
     @field_validator("sequencer_params")
     @classmethod
     def _seq_params(cls, v, info: ValidationInfo):
-        return _sequencer_params(v, info.data.get("sequencer"))
+        return _sequencer_params(v, info.data.get("sequencer"), "sequencer_params")
 
     @field_validator("radii")
     @classmethod

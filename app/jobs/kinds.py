@@ -22,11 +22,14 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from .caps import MAX_PARAMS_BYTES
+
 __all__ = [
     "JobKind",
     "JobCancelled",
     "Progress",
     "KINDS",
+    "MAX_SEED",
     "register",
     "get_kind",
     "run_kind",
@@ -35,6 +38,9 @@ __all__ = [
 ]
 
 Progress = Callable[[float, str], None]
+
+#: Largest random seed a job takes (a 32-bit generator seed).
+MAX_SEED = 2**32 - 1
 
 
 class JobCancelled(Exception):
@@ -49,13 +55,15 @@ class Params(BaseModel):
 
 @dataclass(frozen=True)
 class JobKind:
-    """A kind of job. ``needs_robot``: params name a robot whose model is attached."""
+    """A kind of job. ``needs_robot``: params name a robot whose model is attached;
+    ``max_params_bytes``: the most JSON its params may take (413 above)."""
 
     name: str
     params: type[Params]
     run: Callable[[dict[str, Any], Progress], Any]
     description: str
     needs_robot: bool = False
+    max_params_bytes: int = MAX_PARAMS_BYTES
 
 
 KINDS: dict[str, JobKind] = {}
@@ -124,7 +132,8 @@ register(JobKind("sleep", SleepParams, run_sleep,
 
 # ---- echo ------------------------------------------------------------------------------
 class EchoParams(Params):
-    value: Any = Field(None, description="Any JSON value, returned as the result")
+    value: Any = Field(None, description="Any JSON value, returned as the result (within the "
+                       "limits of every job's params: size, nesting, finite numbers)")
 
 
 def run_echo(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
@@ -137,9 +146,9 @@ register(JobKind("echo", EchoParams, run_echo, "Return the params' value"))
 
 # ---- workspace -------------------------------------------------------------------------
 class WorkspaceParams(Params):
-    robot: str = Field(description="Robot id")
+    robot: str = Field(max_length=200, description="Robot id")
     samples: int = Field(30_000, ge=1, le=20_000_000, description="Monte Carlo samples")
-    seed: int = Field(0, ge=0)
+    seed: int = Field(0, ge=0, le=MAX_SEED)
     voxel: float | None = Field(None, gt=0, le=1e6, description="Voxel edge, mm")
     return_points: int = Field(20_000, ge=0, le=200_000)
     projections: bool = True

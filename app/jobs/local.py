@@ -5,7 +5,9 @@ forkserver that has numpy, scipy and the job kinds already imported, so a start 
 milliseconds), listens on a pipe per job for progress and the result, and writes both to the
 store. One process per job is what keeps a crash contained: a job that segfaults, calls
 ``os._exit`` or is killed for memory fails alone, and the next job gets a fresh process.
-Cancel terminates the process (SIGTERM, then SIGKILL after a grace period), well within 2 s.
+Cancel terminates the process (SIGTERM, then SIGKILL after a grace period), well within 2 s;
+so does the job's time limit, counted from the start of its process, after which the job
+fails with "time limit of N s exceeded".
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import time
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 
-from ..store import Store
+from ..store import Store, StoreError
 from .backend import SupervisedBackend
 from .kinds import KIND_MODULES, JobCancelled, load_kind_modules, run_kind
 
@@ -66,6 +68,10 @@ class _Running:
     outcome: tuple | None = None
     pending_progress: tuple[float, str] | None = None
     cancel_at: float | None = None
+    time_limit_s: float | None = None
+    deadline: float | None = None
+    over_time: bool = False
+    cancelled: bool | None = None  # asked to stop (read once, kept until the outcome is saved)
 
 
 class LocalBackend(SupervisedBackend):
@@ -82,6 +88,9 @@ class LocalBackend(SupervisedBackend):
              *KIND_MODULES]
         )
         self._running: dict[str, _Running] = {}
+        # Jobs claimed (marked running) whose process could not be started yet because the
+        # store failed between the claim and reading the payload: started first next pass.
+        self._claimed: list = []
 
     def _shutdown(self) -> None:
         for job_id, run in list(self._running.items()):
@@ -90,22 +99,28 @@ class LocalBackend(SupervisedBackend):
             self._running.pop(job_id, None)
 
     def _pass(self) -> None:
+        self._handle_time_limits()
         self._handle_cancels()
         self._start_jobs()
         self._collect()
 
     def _start_jobs(self) -> None:
         while len(self._running) < self.workers and not self._stop.is_set():
-            job = self.store.claim_next_job()
+            job = self._claimed.pop(0) if self._claimed else self.store.claim_next_job()
             if job is None:
                 return
-            payload = self.store.job_payload(job.id)
+            try:
+                payload = self.store.job_payload(job.id)
+            except StoreError:
+                self._claimed.insert(0, job)  # not lost: started once the store answers
+                raise
             parent, child = self._ctx.Pipe(duplex=False)
             proc = self._ctx.Process(target=_child_main, args=(child, job.kind, payload),
                                      name=f"kinoplan-job-{job.id}", daemon=True)
             proc.start()
             child.close()
-            self._running[job.id] = _Running(proc, parent)
+            self._running[job.id] = _Running(proc, parent, time_limit_s=job.time_limit_s,
+                                             deadline=self._deadline(job.time_limit_s))
             log.info("job %s (%s) started in process %s", job.id, job.kind, proc.pid)
 
     def _collect(self) -> None:
@@ -145,12 +160,16 @@ class LocalBackend(SupervisedBackend):
             pass
 
     def _finish(self, job_id: str, run: _Running) -> None:
-        self._running.pop(job_id, None)
-        run.conn.close()
-        cancelled = self._take_cancel(job_id)
+        """Save the outcome of a job whose process has ended. If the store fails, the job
+        stays in ``_running`` with its outcome, and the next pass saves it again."""
+        if run.cancelled is None:
+            run.cancelled = self._take_cancel(job_id)
+        cancelled = run.cancelled
         kind, text = run.outcome if run.outcome else (None, None)
         if cancelled or kind == "cancelled":
             self.store.finish_job(job_id, "cancelled", message="cancelled")
+        elif run.over_time and kind != "result":
+            self._fail_over_time(job_id, run.time_limit_s or 0.0)
         elif kind == "result":
             self.store.finish_job(job_id, "succeeded", result_json=text, message="done")
         elif kind == "error":
@@ -163,16 +182,32 @@ class LocalBackend(SupervisedBackend):
                 job_id, "failed", message="worker died",
                 error=f"the worker process died ({why}) before the job finished",
             )
+        self._running.pop(job_id, None)
+        run.conn.close()
         log.info("job %s ended (%s)", job_id, kind or "died")
 
     def _handle_cancels(self) -> None:
         for job_id in self._cancel_requested(set(self._running)):
+            self._stop_process(self._running[job_id])
+
+    def _handle_time_limits(self) -> None:
+        """Stop the processes of jobs past their time limit (they fail when they exit)."""
+        overdue = self._overdue({job_id: run.deadline for job_id, run in self._running.items()})
+        for job_id in overdue:
             run = self._running[job_id]
-            if run.cancel_at is None:
-                run.cancel_at = time.monotonic()
-                run.process.terminate()
-            elif time.monotonic() - run.cancel_at > TERMINATE_GRACE_S:
-                run.process.kill()
+            if not run.over_time:
+                log.info("job %s reached its time limit of %g s", job_id, run.time_limit_s)
+            run.over_time = True
+            self._stop_process(run)
+
+    @staticmethod
+    def _stop_process(run: _Running) -> None:
+        """SIGTERM the job's process, SIGKILL it once the grace period has passed."""
+        if run.cancel_at is None:
+            run.cancel_at = time.monotonic()
+            run.process.terminate()
+        elif time.monotonic() - run.cancel_at > TERMINATE_GRACE_S:
+            run.process.kill()
 
     @staticmethod
     def _terminate(run: _Running) -> None:

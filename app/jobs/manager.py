@@ -10,6 +10,7 @@ from pydantic import ValidationError
 
 from ..registry import RobotRegistry
 from ..store import JobRecord, Store
+from .caps import DEFAULT_TIME_LIMIT_S, ParamsLimitError, check_params
 from .kinds import KINDS, get_kind, load_kind_modules
 
 __all__ = ["JobManager", "JobParamsError", "QueueFullError", "JobStateError",
@@ -57,8 +58,10 @@ class JobManager:
     lifespan), so building an app for a test starts no processes."""
 
     def __init__(self, store: Store, registry: RobotRegistry, jobs_backend: str, workers: int,
-                 max_queued: int) -> None:
+                 max_queued: int, time_limit_s: float = DEFAULT_TIME_LIMIT_S) -> None:
         self.store = store
+        #: Seconds a job may run unless it asks for less (``Settings.job_time_limit_s``).
+        self.time_limit_s = time_limit_s
         self.registry = registry
         self.jobs_backend = jobs_backend
         self.workers = workers
@@ -86,14 +89,28 @@ class JobManager:
         return self.backend is not None and self.backend.alive()
 
     # ---- requests -------------------------------------------------------------------------
-    def submit(self, kind: str, params: dict[str, Any]) -> JobRecord:
-        """Validate and queue a job; raises JobParamsError or QueueFullError."""
+    def submit(self, kind: str, params: dict[str, Any], time_limit_s: float | None = None,
+               max_time_limit_s: float | None = None) -> JobRecord:
+        """Validate and queue a job; raises JobParamsError or QueueFullError. The job may run
+        ``time_limit_s`` seconds (default and most: ``max_time_limit_s``, itself by default
+        the manager's ``time_limit_s``)."""
+        if max_time_limit_s is None:
+            max_time_limit_s = self.time_limit_s
         if kind not in KINDS:
             raise JobParamsError(["kind"], f"unknown job kind {kind!r}; known: "
                                  f"{', '.join(sorted(KINDS))}")
         spec = get_kind(kind)
         if not isinstance(params, dict):
             raise JobParamsError(["params"], "params must be a JSON object")
+        if time_limit_s is None:
+            time_limit_s = max_time_limit_s
+        elif time_limit_s > max_time_limit_s:
+            raise JobParamsError(["time_limit_s"], f"at most {max_time_limit_s:g} s on this "
+                                 f"service, got {time_limit_s:g}")
+        try:  # size first: an oversized submission costs no validation
+            check_params(params, spec.max_params_bytes)
+        except ParamsLimitError as exc:
+            raise JobParamsError(exc.loc, exc.message, exc.status) from None
         try:
             clean = spec.params.model_validate(params).model_dump(mode="json")
         except ValidationError as exc:
@@ -107,7 +124,7 @@ class JobManager:
                 raise JobParamsError(["params", "robot"], f"unknown robot '{clean['robot']}'",
                                      status=404) from None
         job = self.store.add_job(uuid.uuid4().hex[:16], kind, clean, payload,
-                                 max_queued=self.max_queued)
+                                 max_queued=self.max_queued, time_limit_s=time_limit_s)
         if job is None:
             raise QueueFullError(f"{self.max_queued} jobs are already queued; try again later")
         if self.backend is not None:
@@ -117,8 +134,13 @@ class JobManager:
     def get(self, job_id: str) -> JobRecord:
         return self.store.get_job(job_id)
 
-    def list(self, status: str | None = None) -> list[JobRecord]:
-        return self.store.list_jobs(status)
+    def list(self, status: str | None = None, kind: str | None = None,
+             limit: int | None = None, offset: int = 0) -> list[JobRecord]:
+        """Jobs oldest first, optionally of one status and kind, a page at a time."""
+        return self.store.list_jobs(status, limit, kind=kind, offset=offset)
+
+    def count(self, status: str | None = None, kind: str | None = None) -> int:
+        return self.store.count_jobs(status, kind)
 
     def result(self, job_id: str) -> str:
         """The result JSON text; KeyError if unknown, JobStateError unless succeeded."""
@@ -148,8 +170,8 @@ class JobManager:
         from kinematics.learned_ik import LearnedIK
 
         latest = None
-        for job in self.store.list_jobs("succeeded"):
-            if job.kind == "ik_train" and job.params.get("robot") == robot_id:
+        for job in self.store.list_jobs("succeeded", kind="ik_train"):
+            if job.params.get("robot") == robot_id:
                 latest = job
         if latest is None:
             return None

@@ -3,23 +3,42 @@
 from __future__ import annotations
 
 import math
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, model_validator
 
-from .kinds import JobKind, Params, Progress, register
+from kinematics.model import MAX_DOF
+
+from ..fields import Coordinate, JointValue, Point3
+from .kinds import MAX_SEED, JobKind, Params, Progress, register
 
 __all__ = ["CalibrateParams", "IKTrainParams"]
 
-#: Most measurements one calibration takes.
+#: Most measurements one calibration takes, and the most JSON its params may take: 10,000
+#: measured positions, or about 8,000 measured poses, at full float precision.
 MAX_MEASUREMENTS = 10_000
+MAX_CALIBRATE_PARAMS_BYTES = 4 << 20
+#: Most constants one calibration fits.
+MAX_FITTED = 200
+#: Most samples one learned-IK training takes (its model, stored with the result, grows with
+#: them: about 280 bytes of JSON per sample).
+MAX_IK_SAMPLES = 100_000
+#: Largest share of the samples held out for testing (each is polished by the numeric IK).
+MAX_TEST_FRACTION = 0.5
+#: Largest |value| of a calibrated constant's bound (mm or rad).
+MAX_BOUND = 1e7
+
+PoseRow = Annotated[list[Coordinate], Field(min_length=4, max_length=4)]
+ParameterName = Annotated[str, Field(min_length=1, max_length=100)]
+Bound = Annotated[float, Field(ge=-MAX_BOUND, le=MAX_BOUND)]
 
 
 class Measurement(Params):
-    q: list[float] = Field(description="Joint values, rad / mm")
-    pose: list[list[float]] | None = Field(None, description="Measured tool pose 4x4, mm")
-    position: list[float] | None = Field(None, min_length=3, max_length=3,
-                                         description="Measured tool position, mm")
+    q: list[JointValue] = Field(min_length=1, max_length=MAX_DOF,
+                                description="Joint values, rad / mm")
+    pose: list[PoseRow] | None = Field(None, min_length=4, max_length=4,
+                                       description="Measured tool pose 4x4, mm")
+    position: Point3 | None = Field(None, description="Measured tool position, mm")
 
     @model_validator(mode="after")
     def _one_of(self) -> Measurement:
@@ -29,17 +48,19 @@ class Measurement(Params):
 
 
 class CalibrateParams(Params):
-    robot: str
+    robot: str = Field(max_length=200)
     measurements: list[Measurement] = Field(min_length=1, max_length=MAX_MEASUREMENTS)
-    parameters: list[str] = Field(
-        min_length=1, max_length=200,
+    parameters: list[ParameterName] = Field(
+        min_length=1, max_length=MAX_FITTED,
         description="Constants to fit, e.g. 'joints[1].a', 'joints[3].offset', 'base.z'",
     )
-    bounds: dict[str, tuple[float, float]] | None = Field(
-        None, description="Optional [low, high] per parameter name"
+    bounds: Annotated[dict[ParameterName, tuple[Bound, Bound]],
+                      Field(max_length=MAX_FITTED)] | None = Field(
+        None, description="Optional [low, high] per parameter name (mm or rad)"
     )
-    regularization: float = Field(0.0, ge=0, description="Pull towards the current values")
-    seed: int = Field(0, ge=0)
+    regularization: float = Field(0.0, ge=0, le=1e6,
+                                  description="Pull towards the current values")
+    seed: int = Field(0, ge=0, le=MAX_SEED)
 
 
 def run_calibrate(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
@@ -77,20 +98,22 @@ def run_calibrate(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
 
 register(JobKind("calibrate", CalibrateParams, run_calibrate,
                  "Identify a model's constants from measured (q, pose/position) pairs",
-                 needs_robot=True))
+                 needs_robot=True, max_params_bytes=MAX_CALIBRATE_PARAMS_BYTES))
 
 
 class IKTrainParams(Params):
-    robot: str
-    samples: int = Field(10_000, ge=20, le=200_000, description="Monte Carlo samples")
-    test_fraction: float = Field(0.12, gt=0, lt=1, description="Held out for testing")
-    seed: int = Field(0, ge=0)
+    robot: str = Field(max_length=200)
+    samples: int = Field(10_000, ge=20, le=MAX_IK_SAMPLES, description="Monte Carlo samples")
+    test_fraction: float = Field(0.12, gt=0, le=MAX_TEST_FRACTION,
+                                 description="Held out for testing")
+    seed: int = Field(0, ge=0, le=MAX_SEED)
     posture: Literal["auto", "free", "drilling"] = Field(
         "auto",
         description="'drilling': the drill kept perpendicular to the face (paper 002); "
         "'auto': drilling for drilling arms, free otherwise",
     )
-    fixed: dict[int, float] | None = Field(
+    fixed: Annotated[dict[Annotated[int, Field(ge=0, lt=MAX_DOF)], JointValue],
+                     Field(max_length=MAX_DOF)] | None = Field(
         None, description="Joint index -> value held fixed (drilling arms: the feed d7)"
     )
 

@@ -8,26 +8,47 @@ obstacle, outside the bounds) by field validators that reuse ``planning.scene``'
 
 ``robot`` is optional, so the kind is registered with ``needs_robot=False``; when the service
 attaches the model under ``_model`` it is used, else a built-in robot is looked up by id.
+
+Planner ``params`` are free-form in the contract but checked against the planner's bounded
+model (``planner_params``): every knob capped, and one batch of obstacle checks within
+``MAX_BATCH_BYTES`` of memory.
 """
 
 from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    WithJsonSchema,
+    field_validator,
+    model_validator,
+)
 
+from ..fields import MAX_COORDINATE_MM
 from ..fields import Point3 as Vec3
-from .kinds import JobKind, Params, Progress, register
+from .kinds import MAX_SEED, JobKind, Params, Progress, register
+from .planner_params import PATH_KNOBS, check_batch_memory, knobs_schema, path_knobs
 
 __all__ = ["PathParams", "PathCompareParams", "run_path", "run_path_compare"]
 
 Algorithm = Literal["wolfpack_improved", "wolfpack", "ga", "aca", "afsa", "rrt_star", "auto"]
 #: Most obstacles in one scene.
 MAX_OBSTACLES = 1000
-#: Parameter names the planners take besides their optimiser's fields.
-_COMMON = {"waypoints", "penalty", "max_evaluations", "shortcut", "random_shortcuts"}
-_OWN = {"auto": {"samples", "rel_offset", "rounds"},
-        "rrt_star": {"samples", "step", "goal_bias", "gamma", "time_limit"}}
+#: Largest obstacle radius or box edge, and safety margin (mm).
+MAX_SIZE_MM = MAX_COORDINATE_MM
+#: Most samples of a returned joint trajectory (``arm.duration / arm.dt``).
+MAX_TRAJECTORY_SAMPLES = 100_000
+#: Largest link radius (mm) of the whole-arm check.
+MAX_LINK_RADIUS_MM = 10_000.0
+
+#: The JSON schema of ``path``'s free-form ``params``: one of the planners' bounded models.
+PLANNER_PARAMS_SCHEMA = knobs_schema(
+    PATH_KNOBS, "Planner parameters (defaults: paper 000's), by algorithm; see "
+    "planning.paths")
 
 
 class _Strict(BaseModel):
@@ -40,10 +61,10 @@ class ObstacleIn(_Strict):
 
     type: Literal["sphere", "box", "capsule"] = "sphere"
     center: Vec3 | None = None
-    radius: float | None = Field(None, gt=0, le=1e9, description="mm")
+    radius: float | None = Field(None, gt=0, le=MAX_SIZE_MM, description="mm")
     lower: Vec3 | None = None
     upper: Vec3 | None = None
-    size: list[Annotated[float, Field(gt=0, le=1e9)]] | None = Field(
+    size: list[Annotated[float, Field(gt=0, le=MAX_SIZE_MM)]] | None = Field(
         None, min_length=3, max_length=3, description="box edge lengths, mm")
     a: Vec3 | None = None
     b: Vec3 | None = None
@@ -75,7 +96,7 @@ class SceneIn(_Strict):
     bounds: list[Vec3] = Field(min_length=2, max_length=2,
                                description="[[xmin, ymin, zmin], [xmax, ymax, zmax]] mm")
     obstacles: list[ObstacleIn] = Field(default_factory=list, max_length=MAX_OBSTACLES)
-    safety_margin: float = Field(0.0, ge=0, le=1e9, description="mm")
+    safety_margin: float = Field(0.0, ge=0, le=MAX_SIZE_MM, description="mm")
 
     @field_validator("bounds")
     @classmethod
@@ -95,14 +116,24 @@ class SceneIn(_Strict):
 class ArmOptions(_Strict):
     """Options of a path planned for a robot's tool (see ``planning.arm_paths``)."""
 
-    link_radius: float | list[Annotated[float, Field(ge=0, le=1e6)]] = Field(
+    link_radius: (Annotated[float, Field(ge=0, le=MAX_LINK_RADIUS_MM)]
+                  | Annotated[list[Annotated[float, Field(ge=0, le=MAX_LINK_RADIUS_MM)]],
+                              Field(min_length=1, max_length=64)]) = Field(
         60.0, description="mm, one number or one per link")
-    spacing: float = Field(10.0, gt=0, le=1e6, description="mm between IK samples")
-    waypoint_spacing: float = Field(25.0, gt=0, le=1e6, description="mm between waypoints")
-    duration: float = Field(10.0, gt=0, le=1e6, description="s of the joint trajectory")
-    clearance_slack: float = Field(5.0, ge=0, le=1e6, description="mm")
-    keep_out_radius: float | None = Field(None, gt=0, le=1e9, description="mm")
-    dt: float | None = Field(None, gt=0, le=1e3, description="s between trajectory samples")
+    spacing: float = Field(10.0, ge=1, le=1e5, description="mm between IK samples")
+    waypoint_spacing: float = Field(25.0, ge=1, le=1e6, description="mm between waypoints")
+    duration: float = Field(10.0, gt=0, le=86_400, description="s of the joint trajectory")
+    clearance_slack: float = Field(5.0, ge=0, le=1e4, description="mm")
+    keep_out_radius: float | None = Field(None, gt=0, le=MAX_SIZE_MM, description="mm")
+    dt: float | None = Field(None, ge=1e-3, le=1e3, description="s between trajectory "
+                             f"samples (at most {MAX_TRAJECTORY_SAMPLES:,} samples)")
+
+    @model_validator(mode="after")
+    def _samples(self) -> ArmOptions:
+        if self.dt is not None and self.duration / self.dt > MAX_TRAJECTORY_SAMPLES:
+            raise ValueError(f"dt: duration / dt is {self.duration / self.dt:,.0f} samples; "
+                             f"at most {MAX_TRAJECTORY_SAMPLES:,}")
+        return self
 
 
 def _endpoint(v, info: ValidationInfo):
@@ -113,22 +144,13 @@ def _endpoint(v, info: ValidationInfo):
     return v
 
 
-def _algorithm_params(v, info: ValidationInfo):
-    if v is None:
-        return v
-    algorithm = info.data.get("algorithm")
-    if algorithm is None:
-        return v
-    if algorithm in _OWN:
-        unknown = set(v) - _OWN[algorithm]
-        if unknown:
-            raise ValueError(f"{sorted(unknown)[0]} is not a parameter of {algorithm}; "
-                             f"known: {', '.join(sorted(_OWN[algorithm]))}")
-        return v
-    from planning.paths import make_optimiser
-
-    make_optimiser(algorithm, {k: x for k, x in v.items() if k not in _COMMON})
-    return v
+def _batch_memory(scene: SceneIn | None, runs: dict[str, dict | None]) -> None:
+    """Each planner's largest batch of obstacle checks fits the memory cap."""
+    if scene is None:
+        return
+    types = [o.type for o in scene.obstacles]
+    for algorithm, knobs in runs.items():
+        check_batch_memory(algorithm, knobs, types)
 
 
 class _SceneTask(Params):
@@ -137,7 +159,7 @@ class _SceneTask(Params):
     scene: SceneIn
     start: Vec3
     goal: Vec3
-    seed: int = Field(0, ge=0, le=2**32 - 1)
+    seed: int = Field(0, ge=0, le=MAX_SEED)
 
     @field_validator("start", "goal")
     @classmethod
@@ -147,16 +169,21 @@ class _SceneTask(Params):
 
 class PathParams(_SceneTask):
     algorithm: Algorithm = "auto"
-    params: dict[str, Any] | None = Field(
-        None, description="Planner parameters (defaults: paper 000's); see planning.paths")
-    robot: str | None = Field(None, description="Robot id: plan for its tool and check the "
-                                                "whole arm")
+    params: Annotated[dict[str, Any] | None, WithJsonSchema(PLANNER_PARAMS_SCHEMA)] = None
+    robot: str | None = Field(None, max_length=200,
+                              description="Robot id: plan for its tool and check the whole arm")
     arm: ArmOptions | None = None
 
     @field_validator("params")
     @classmethod
     def _params_known(cls, v, info: ValidationInfo):
-        return _algorithm_params(v, info)
+        algorithm = info.data.get("algorithm")
+        return v if algorithm is None else path_knobs(algorithm, v)
+
+    @model_validator(mode="after")
+    def _memory(self) -> PathParams:
+        _batch_memory(self.scene, {self.algorithm: self.params})
+        return self
 
 
 def _model(params: dict[str, Any]):
@@ -204,8 +231,13 @@ class PathCompareParams(_SceneTask):
         default_factory=lambda: ["wolfpack_improved", "wolfpack", "aca", "ga", "afsa"],
         min_length=1, max_length=7)
     runs: int = Field(10, ge=1, le=100, description="Seeds per algorithm")
-    params: dict[str, dict[str, Any]] | None = Field(
-        None, description="Parameters per algorithm, e.g. {'wolfpack': {'iterations': 20}}")
+    params: Annotated[dict[str, dict[str, Any]] | None, WithJsonSchema({
+        "anyOf": [{"type": "object", "additionalProperties": False,
+                   "properties": {name: model.model_json_schema()
+                                  for name, model in PATH_KNOBS.items()}},
+                  {"type": "null"}],
+        "description": "Parameters per algorithm, e.g. {'wolfpack': {'iterations': 20}}"})
+    ] = None
 
     @field_validator("params")
     @classmethod
@@ -213,18 +245,15 @@ class PathCompareParams(_SceneTask):
         algorithms = info.data.get("algorithms")
         if v is None or algorithms is None:
             return v
-        for name, p in v.items():
+        for name in v:
             if name not in algorithms:
                 raise ValueError(f"{name} is not among the algorithms compared")
-            _algorithm_params(p, _Info(name))
-        return v
+        return {name: path_knobs(name, p, f"params.{name}", (name,)) for name, p in v.items()}
 
-
-class _Info:
-    """Just enough of ValidationInfo for ``_algorithm_params``."""
-
-    def __init__(self, algorithm: str) -> None:
-        self.data = {"algorithm": algorithm}
+    @model_validator(mode="after")
+    def _memory(self) -> PathCompareParams:
+        _batch_memory(self.scene, {a: (self.params or {}).get(a) for a in self.algorithms})
+        return self
 
 
 def run_path_compare(params: dict[str, Any], progress: Progress) -> dict[str, Any]:

@@ -24,13 +24,20 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, model_validator
 
-from ..fields import Coordinate
-from .kinds import JobKind, Params, Progress, register
+from ..fields import Coordinate, JointValue
+from .kinds import MAX_SEED, JobKind, Params, Progress, register
 
-__all__ = ["TrackingParams", "run_tracking", "MAX_RUNS"]
+__all__ = ["TrackingParams", "run_tracking", "MAX_RUNS", "MAX_TUNING_WORK"]
 
 #: Most runs one job may ask for (the paper's 30).
 MAX_RUNS = 30
+#: Most control steps of one simulated run (``planning.tracking.MAX_STEPS``).
+MAX_STEPS = 20_000
+#: Most control steps x (tuner iterations + 1) x runs of a tuned job: each unit is one step
+#: simulated for a population of 50, about 0.25 ms, so the largest job takes ~25 minutes.
+MAX_TUNING_WORK = 6_000_000
+#: Tuner iterations when ``iterations`` is not given (paper 003, Table 2).
+DEFAULT_TUNER_ITERATIONS = 50
 
 #: A direction (scaled to unit length); bounded like every coordinate so its norm is finite.
 Vector3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3)]
@@ -77,7 +84,7 @@ class BoundsParams(Params):
 
 
 class TrackingParams(Params):
-    robot: str = Field("hyper_redundant_9dof", description="Robot id")
+    robot: str = Field("hyper_redundant_9dof", max_length=200, description="Robot id")
     task: LineTaskParams | EllipseTaskParams = Field(discriminator="kind")
     controller: ControllerParams = ControllerParams()
     tune: Literal["hgso", "pso", "ga", "aco", "gwo"] | None = None
@@ -85,14 +92,31 @@ class TrackingParams(Params):
     iterations: int | None = Field(None, ge=1, le=200, description="Tuner iterations "
                                    "(default: Table 2's 50)")
     runs: int = Field(1, ge=1, le=MAX_RUNS)
-    seed: int = Field(0, ge=0, le=2**32 - 1)
-    dt: float = Field(0.1, ge=0.01, le=1.0, description="Control period, s")
-    q0: list[float] | None = Field(None, min_length=1, max_length=32)
+    seed: int = Field(0, ge=0, le=MAX_SEED)
+    dt: float = Field(0.1, ge=0.01, le=1.0, description="Control period, s (at most "
+                      f"{MAX_STEPS:,} steps per run)")
+    q0: list[JointValue] | None = Field(None, min_length=1, max_length=32)
 
     @model_validator(mode="after")
     def _runs_need_tuning(self) -> TrackingParams:
         if self.runs > 1 and self.tune is None:
             raise ValueError("runs: more than one run needs 'tune' (untuned runs are equal)")
+        return self
+
+    @model_validator(mode="after")
+    def _work(self) -> TrackingParams:
+        steps = round(self.task.duration / self.dt)
+        if steps > MAX_STEPS:
+            raise ValueError(f"dt: the task takes {steps:,} control steps; at most "
+                             f"{MAX_STEPS:,} (raise dt or shorten the task)")
+        if self.tune is not None:
+            iterations = self.iterations or DEFAULT_TUNER_ITERATIONS
+            work = steps * (iterations + 1) * self.runs
+            if work > MAX_TUNING_WORK:
+                raise ValueError(
+                    f"iterations: {steps:,} control steps x {iterations + 1} tuner "
+                    f"iterations x {self.runs} runs = {work:,}; at most {MAX_TUNING_WORK:,} "
+                    "(fewer runs or iterations, a larger dt or a shorter task)")
         return self
 
 

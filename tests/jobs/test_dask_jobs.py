@@ -72,3 +72,17 @@ def test_failure_and_cancel(dask_client):
     assert dask_client.delete(f"/jobs/{long}").status_code == 200
     assert wait_for(dask_client, long)["status"] == "cancelled"
     assert time.monotonic() - t0 < 2.0
+
+
+def test_time_limit(dask_client):
+    r = dask_client.post("/jobs", json={"kind": "sleep", "params": {"seconds": 30, "steps": 300},
+                                        "time_limit_s": 1})
+    assert r.status_code == 202, r.text
+    job_id = r.json()["id"]
+    wait_for(dask_client, job_id, statuses=("running",))
+    t0 = time.monotonic()
+    job = wait_for(dask_client, job_id, timeout=10)
+    assert job["status"] == "failed" and job["error"] == "time limit of 1 s exceeded"
+    assert time.monotonic() - t0 < 3.0
+    # The cluster's thread is free again: the next job runs.
+    assert wait_for(dask_client, submit(dask_client, "echo", value=5))["status"] == "succeeded"

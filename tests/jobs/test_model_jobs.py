@@ -72,3 +72,46 @@ def test_learned_ik_trains_then_answers(jobs_client, capsys):
     assert res["success"] and res["method"] == "learned+numeric"
     assert res["learned"]["position_error"] < 5.0
     assert res["position_error"] < 1e-4
+
+
+def test_learned_ik_trains_on_the_glt_palletizer_with_defaults(jobs_client):
+    """A free posture learns the orientation too, whose rotation columns obey quadratic
+    identities; the map still fits (thin-plate spline) and its guesses polish to solutions."""
+    out = run_job(jobs_client, "ik_train", robot="glt_palletizer")
+    rep = out["report"]
+    assert out["posture"] == "free" and (rep["train"], rep["test"]) == (8800, 1200)
+    assert rep["polished_success"] > 0.95 and rep["polished_max_position_error"] < 1e-3
+    model = builtin_model("glt_palletizer")
+    T = fk(model, np.radians([15, 30, 45, 60, 90, 160]))
+    res = jobs_client.post("/robots/glt_palletizer/ik",
+                           json={"pose": T.tolist(), "method": "learned"}).json()["results"][0]
+    assert res["success"] and res["method"] == "learned+numeric"
+
+
+def test_the_kernel_follows_the_features():
+    from scipy.spatial.transform import Rotation
+
+    from kinematics.learned_ik import distinct_rows, quadratic_tail_is_singular
+
+    rng = np.random.default_rng(0)
+    R = Rotation.random(500, random_state=1).as_matrix()
+    position = rng.uniform(-1, 1, (500, 3))
+    assert quadratic_tail_is_singular(np.hstack([position, R[:, :, 0], R[:, :, 1]]))
+    assert not quadratic_tail_is_singular(position)
+    X = np.array([[1.0, 2.0], [3.0, 4.0], [1.0, 2.0], [5.0, 6.0], [3.0, 4.0]])
+    assert distinct_rows(X).tolist() == [0, 1, 3]
+
+
+def test_duplicate_samples_do_not_break_the_map():
+    """Two joint solutions of one pose are one feature row with two targets: the first is
+    kept, and the map still answers."""
+    from kinematics.learned_ik import LearnedIK
+
+    rng = np.random.default_rng(0)
+    features = rng.uniform(-1, 1, (200, 3))
+    features[100:110] = features[:10]
+    targets = rng.uniform(0, 1, (200, 3))
+    learned = LearnedIK("x", features, targets, np.ones(3, bool), np.zeros(3),
+                        np.zeros(3), np.ones(3))
+    assert learned.kernel == "quintic"
+    assert np.allclose(learned._interp(features[:10]), targets[:10], atol=1e-6)

@@ -54,7 +54,11 @@ def submit(client, kind: str, params: dict):
     (lambda p: p["scene"]["obstacles"][2].update(upper=[60, 90, 90]),
      ["body", "params", "scene", "obstacles", 2, "upper"], "must exceed lower"),
     (lambda p: p.update(algorithm="wolfpack", params={"wolves": 3}),
-     ["body", "params", "params"], "not a parameter of wolfpack"),
+     ["body", "params", "params", "wolves"], "not a parameter of wolfpack"),
+    (lambda p: p.update(algorithm="ga", params={"iterations": 1e12}),
+     ["body", "params", "params", "iterations"], "less than or equal to 20000"),
+    (lambda p: p.update(algorithm="rrt_star", params={"samples": 10**9}),
+     ["body", "params", "params", "samples"], "params.samples"),
 ])
 def test_bad_scenes_are_422_naming_the_field(client, change, loc, words):
     import copy

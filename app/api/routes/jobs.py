@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import json
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Depends, Path, Request, Response
+from fastapi import APIRouter, Depends, Path, Query, Request, Response
 from pydantic import Field
+from starlette.concurrency import run_in_threadpool
 
+from ...jobs.caps import MAX_PARAMS_BYTES, MAX_PARAMS_DEPTH, MAX_TIME_LIMIT_S
 from ...jobs.kinds import KINDS
 from ...jobs.manager import JobManager, JobParamsError, JobStateError, QueueFullError
 from ..deps import RegistryDep, require_api_key
@@ -16,10 +18,27 @@ from ..schemas import Body, JobRecordOut
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
+#: Jobs ``GET /jobs`` answers by default, and at most, per page.
+DEFAULT_PAGE = 100
+MAX_PAGE = 1000
+#: Largest ``offset`` of ``GET /jobs``.
+MAX_OFFSET = 10**12
+
+JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
+
 
 class JobRequest(Body):
-    kind: str = Field(description="Job kind, e.g. 'workspace' (see GET /jobs/kinds)")
-    params: dict[str, Any] = Field(default_factory=dict, description="Parameters of the kind")
+    kind: str = Field(max_length=64,
+                      description="Job kind, e.g. 'workspace' (see GET /jobs/kinds)")
+    params: dict[str, Any] = Field(
+        default_factory=dict,
+        description=f"Parameters of the kind: at most {MAX_PARAMS_BYTES:,} bytes of JSON "
+        "(413 above; some kinds take more, see GET /jobs/kinds), nested at most "
+        f"{MAX_PARAMS_DEPTH} levels, every number finite")
+    time_limit_s: float | None = Field(
+        None, ge=1, le=MAX_TIME_LIMIT_S,
+        description="Seconds the job may run before it fails with 'time limit of N s "
+        "exceeded'; default, and most, the service's job time limit (3600 s unless set)")
 
 
 def get_manager(request: Request) -> JobManager:
@@ -35,29 +54,58 @@ JobId = Annotated[str, Path(description="Job id", max_length=64)]
              responses={404: {"description": "Unknown robot in params"},
                         422: {"description": "Invalid kind or params"},
                         429: {"description": "Queue full"}})
-def submit_job(body: JobRequest, jobs: ManagerDep) -> dict:
+def submit_job(body: JobRequest, jobs: ManagerDep, request: Request) -> dict:
     """Queue a job; its params are checked before it is queued."""
+    settings = request.app.state.settings
     try:
-        job = jobs.submit(body.kind, body.params)
+        job = jobs.submit(body.kind, body.params, body.time_limit_s,
+                          settings.job_time_limit_s)
     except JobParamsError as exc:
-        raise http_error(exc.status, ["body", *exc.loc], exc.message,
-                     "not_found" if exc.status == 404 else "value_error") from None
+        kind = {404: "not_found", 413: "too_large"}.get(exc.status, "value_error")
+        raise http_error(exc.status, ["body", *exc.loc], exc.message, kind) from None
     except QueueFullError as exc:
         raise http_error(429, ["body", "kind"], str(exc), "queue_full") from None
     return job.to_dict()
 
 
-@router.get("", response_model=list[JobRecordOut])
-def list_jobs(jobs: ManagerDep) -> list[dict]:
-    """Every job, oldest first (without results)."""
-    return [j.to_dict() for j in jobs.list()]
+@router.get("", response_model=list[JobRecordOut], responses={200: {"headers": {
+    "X-Total-Count": {"description": "Jobs matching the filters, on every page",
+                      "schema": {"type": "integer"}},
+    "Link": {"description": '<URL of the next page>; rel="next" while more remain',
+             "schema": {"type": "string"}},
+}}})
+def list_jobs(
+    jobs: ManagerDep,
+    request: Request,
+    response: Response,
+    status: Annotated[JobStatus | None, Query(description="Only jobs of this status")] = None,
+    kind: Annotated[str | None, Query(max_length=64,
+                                      description="Only jobs of this kind")] = None,
+    limit: Annotated[int, Query(ge=1, le=MAX_PAGE, description="Jobs per page")] = DEFAULT_PAGE,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET,
+                                 description="Matching jobs to skip")] = 0,
+) -> list[dict]:
+    """Jobs oldest first (without results), a page at a time: ``X-Total-Count`` gives how
+    many match, ``Link: <...>; rel="next"`` the next page while more remain."""
+    if kind is not None and kind not in KINDS:
+        raise http_error(422, ["query", "kind"], f"unknown job kind {kind!r}; known: "
+                         f"{', '.join(sorted(KINDS))}", "value_error")
+    total = jobs.count(status, kind)
+    page = jobs.list(status, kind, limit, offset)
+    response.headers["X-Total-Count"] = str(total)
+    if offset + len(page) < total:
+        following = request.url.include_query_params(limit=limit, offset=offset + len(page))
+        response.headers["Link"] = f'<{following}>; rel="next"'
+    return [j.to_dict() for j in page]
 
 
 @router.get("/kinds")
 def job_kinds() -> list[dict]:
-    """The job kinds and the JSON schema of their params."""
+    """The job kinds, the JSON schema of their params and the most bytes of JSON those
+    may take."""
     return [{"kind": k.name, "description": k.description,
-             "params": k.params.model_json_schema()} for k in KINDS.values()]
+             "params": k.params.model_json_schema(), "max_params_bytes": k.max_params_bytes}
+            for k in KINDS.values()]
 
 
 @router.get("/{job_id}", response_model=JobRecordOut, responses={404: {"description": "Unknown"}})
@@ -91,11 +139,20 @@ PLOTTABLE_KINDS = ("tracking",)
                        404: {"description": "Unknown job"},
                        409: {"description": "Not succeeded (yet)"},
                        422: {"description": "A kind without a plot"}})
-def get_job_plot(job_id: JobId, jobs: ManagerDep, registry: RegistryDep) -> Response:
+async def get_job_plot(job_id: JobId, jobs: ManagerDep, registry: RegistryDep,
+                       request: Request) -> Response:
     """A succeeded job's result as a PNG. ``tracking``: joint angles, joint speeds (limits
     dashed), error per axis and tool error against time (paper 003, Figure 7)."""
     from ...plots import tracking_png
 
+    args = await run_in_threadpool(_tracking_plot_args, job_id, jobs, registry)
+    # Drawing holds the interpreter for a while: in a worker process (app.compute).
+    png = await request.app.state.compute.run(True, tracking_png, *args)
+    return Response(png, media_type="image/png")
+
+
+def _tracking_plot_args(job_id: str, jobs: JobManager, registry) -> tuple:
+    """What ``tracking_png`` draws for job ``job_id`` (404, 409 or 422 when there is none)."""
     try:
         job = jobs.get(job_id)
         text = jobs.result(job_id)
@@ -122,9 +179,8 @@ def get_job_plot(job_id: JobId, jobs: ManagerDep, registry: RegistryDep) -> Resp
     controller = {"pi": "PI", "default": "default (PI + feed-forward)"}.get(
         result["controller"], result["controller"])
     title = f"{result['robot']}: {result['task']['kind']} task, {controller} controller{tune}"
-    png = tracking_png(result["t"], result["q"], result["x_desired"], result["x_actual"],
-                       names, title, limits)
-    return Response(png, media_type="image/png")
+    return (result["t"], result["q"], result["x_desired"], result["x_actual"], names, title,
+            limits)
 
 
 @router.delete("/{job_id}", response_model=JobRecordOut,
