@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install run test lint bench clean chromium
+.PHONY: install run test lint bench clean chromium fuzz
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,6 +27,11 @@ test: $(STAMP) chromium
 
 lint: $(STAMP)
 	$(BIN)/python -m ruff check app kinematics planning web tests benchmarks tools
+
+# The long fuzz of the whole API (tools/fuzz.py: about 5 minutes on 2 cores): fails on any
+# 5xx or answer off its response schema, or if fewer than 2,000 requests were sent.
+fuzz: $(STAMP)
+	$(BIN)/python tools/fuzz.py
 
 bench: $(STAMP)
 	$(BIN)/pip install --quiet -e ".[test,bench]"

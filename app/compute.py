@@ -20,6 +20,7 @@ import asyncio
 import json
 import logging
 import multiprocessing
+import pickle
 import threading
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -62,6 +63,20 @@ def encode_json(content: Any) -> bytes:
     """JSON as the service answers it (compact, UTF-8, no NaN)."""
     return json.dumps(content, ensure_ascii=False, allow_nan=False,
                       separators=(",", ":")).encode()
+
+
+def _call(fn: Callable[..., Any], *args: Any) -> Any:
+    """Run in the worker: ``fn(*args)``, with an exception that cannot travel back (one that
+    does not survive pickling) replaced by a RuntimeError saying what it was, so it fails
+    this request alone instead of breaking the pool."""
+    try:
+        return fn(*args)
+    except Exception as exc:
+        try:
+            pickle.loads(pickle.dumps(exc))
+        except Exception:
+            raise RuntimeError(f"{type(exc).__name__}: {exc}") from None
+        raise
 
 
 def _warm() -> None:
@@ -112,7 +127,7 @@ class ComputePool:
         self._waiting += 1
         pool = self._pool()
         try:
-            return await asyncio.wrap_future(pool.submit(fn, *args))
+            return await asyncio.wrap_future(pool.submit(_call, fn, *args))
         except BrokenProcessPool:
             log.warning("a compute worker died; starting the pool afresh")
             self._discard(pool)
@@ -122,7 +137,17 @@ class ComputePool:
             self._waiting -= 1
 
     def shutdown(self) -> None:
+        """Stop the workers now, whatever they are computing (their requests are gone)."""
         with self._lock:
             executor, self._executor = self._executor, None
-        if executor is not None:
-            executor.shutdown(wait=False, cancel_futures=True)
+        if executor is None:
+            return
+        processes = list((getattr(executor, "_processes", None) or {}).values())
+        executor.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            if process.is_alive():
+                process.terminate()
+        for process in processes:
+            process.join(2.0)
+            if process.is_alive():
+                process.kill()

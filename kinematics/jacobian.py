@@ -51,8 +51,10 @@ class Dexterity:
 def dexterity(model: RobotModel, J: np.ndarray) -> Dexterity:
     """Dexterity of one Jacobian ``(6, dof)``."""
     J = np.asarray(J, dtype=float)
-    det = np.linalg.det(J @ J.T)
-    manip = float(np.sqrt(max(det, 0.0)))
+    # sqrt(det(J Jᵀ)) is the product of J's singular values (0 with fewer than 6 joints); from
+    # the SVD it needs no determinant, whose LU step can divide by zero at extreme values.
+    sv_raw = np.linalg.svd(J, compute_uv=False)
+    manip = float(np.prod(sv_raw[:6])) if J.shape[1] >= J.shape[0] else 0.0
     Jn = J.copy()
     Jn[:3] /= model.length_scale
     sv = np.linalg.svd(Jn, compute_uv=False)

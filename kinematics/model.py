@@ -296,6 +296,9 @@ def pose_field(value: Any, path: str) -> np.ndarray:
             raise ModelError(path, "must be finite")
         if np.abs(T[:3, 3]).max() > MAX_LENGTH_MM:
             raise ModelError(path, f"translation must be within ±{MAX_LENGTH_MM:g} mm")
+        if np.abs(T[:3, :3]).max() > 1.0 + 1e-6 or np.abs(T[3] - [0, 0, 0, 1]).max() > 1e-9:
+            raise ModelError(path, "is not a rigid transform (rotation entries beyond ±1, or "
+                             "last row not [0, 0, 0, 1])")
         if rigidity_error(T) > 1e-6:
             raise ModelError(path, "is not a rigid transform (rotation not orthonormal)")
     T.setflags(write=False)

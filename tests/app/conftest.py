@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import pytest
 from fastapi.testclient import TestClient
 
@@ -10,6 +12,8 @@ from app.main import create_app
 
 
 @pytest.fixture
-def client(tmp_path) -> TestClient:
+def client(tmp_path) -> Iterator[TestClient]:
     """A test client of a new app without the 3D viewer, storing its data under tmp_path."""
-    return TestClient(create_app(Settings(no_viewer=True, data_dir=tmp_path)))
+    api = create_app(Settings(no_viewer=True, data_dir=tmp_path))
+    yield TestClient(api)
+    api.state.compute.shutdown()  # worker processes of large requests, if any started

@@ -20,6 +20,7 @@ running.
 
 from __future__ import annotations
 
+import os
 import tempfile
 import zlib
 from typing import Any
@@ -32,7 +33,7 @@ from hypothesis import HealthCheck, Phase, settings
 from app.config import Settings
 from app.main import create_app
 
-MAX_EXAMPLES = 12
+MAX_EXAMPLES = int(os.environ.get("KINOPLAN_FUZZ_EXAMPLES", "12"))  # tools/fuzz.py: more
 SEED = 20240611
 
 CONFIG = schemathesis.Config.from_dict({
@@ -159,11 +160,12 @@ def map_case(context, case):
 @pytest.fixture
 def api(tmp_path):
     """A fresh app (one job worker, data under tmp_path); its viewer, if a test started one,
-    is stopped afterwards."""
+    and its compute workers are stopped afterwards."""
     fresh = _new_app(tmp_path / "data")
     yield fresh
     if fresh.state.viewer is not None:
         fresh.state.viewer.stop()
+    fresh.state.compute.shutdown()
 
 
 def _ensure_viewer(case, api) -> None:

@@ -352,3 +352,57 @@ def test_busy_compute_answers_503_with_retry_after(tmp_path):
     assert r.status_code == 503
     assert r.headers["retry-after"] == "2"
     assert r.json()["detail"][0]["loc"] == ["service", "compute"]
+
+
+class _Unpicklable(Exception):
+    def __init__(self, a, b):
+        super().__init__(f"{a} and {b}")
+
+
+def _raise_unpicklable() -> None:
+    raise _Unpicklable(1, 2)
+
+
+def _raise_method_unavailable() -> None:
+    from kinematics.errors import MethodUnavailableError
+
+    raise MethodUnavailableError("analytic", "no closed form for this robot")
+
+
+def test_errors_come_back_from_a_worker_without_breaking_it():
+    from kinematics.errors import MethodUnavailableError
+
+    pool = ComputePool(workers=1, max_waiting=4)
+    try:
+        with pytest.raises(MethodUnavailableError) as caught:
+            asyncio.run(pool.run(True, _raise_method_unavailable))
+        assert caught.value.method == "analytic"
+        with pytest.raises(RuntimeError, match="_Unpicklable: 1 and 2"):
+            asyncio.run(pool.run(True, _raise_unpicklable))
+        assert isinstance(asyncio.run(pool.run(True, _sleep_then_pid, 0.0)), int)
+    finally:
+        pool.shutdown()
+
+
+def test_shutdown_stops_a_busy_worker_at_once():
+    pool = ComputePool(workers=1, max_waiting=4)
+
+    async def start_long() -> None:
+        task = asyncio.ensure_future(pool.run(True, _sleep_then_pid, 60.0))
+        await asyncio.sleep(1.0)
+        task.cancel()
+
+    asyncio.run(start_long())
+    processes = list(pool._executor._processes.values())
+    assert processes and all(p.is_alive() for p in processes)
+    start = time.monotonic()
+    pool.shutdown()
+    assert not any(p.is_alive() for p in processes)
+    assert time.monotonic() - start < 5.0
+
+
+def test_a_batch_ik_on_a_robot_without_a_closed_form_is_422(client):
+    T = [[1, 0, 0, 500], [0, 1, 0, 0], [0, 0, 1, 300], [0, 0, 0, 1]]
+    r = client.post("/robots/tunnel_drill_arm/ik", json={"pose": [T] * 12,
+                                                        "method": "analytic"})
+    assert r.status_code == 422 and _locs(r) == [["body", "method"]]
