@@ -74,7 +74,23 @@ def _read_app() -> tuple[dict, dict[str, int], list[str]]:
     return document, dof, names
 
 
+def _cylinder_strokes() -> dict[str, dict[str, tuple[float, float]]]:
+    """Each built-in robot's cylinders: name -> (min_length, max_length), mm."""
+    from kinematics.cylinders import cylinder_set
+    from kinematics.library import builtin_model
+
+    out = {}
+    for robot_id in BUILTIN_DOF:
+        try:
+            cyl = cylinder_set(builtin_model(robot_id))
+        except Exception:  # no cylinder data (or a rig's arm): nothing to aim at
+            continue
+        out[robot_id] = {name: cyl.limits(name) for name in cyl.names}
+    return out
+
+
 DOCUMENT, BUILTIN_DOF, JOB_KINDS = _read_app()
+CYLINDERS = _cylinder_strokes()
 BUILTINS = sorted(BUILTIN_DOF)
 schema = schemathesis.openapi.from_dict(DOCUMENT, config=CONFIG)
 
@@ -134,11 +150,31 @@ def _fit_body(body: dict, dof: int | None) -> dict:
     for key, n in (("pose", 4), ("rotation", 3)):
         if key in body:
             body[key] = _rigid(body[key], n)
+    waypoints, durations = body.get("waypoints"), body.get("durations")
+    if isinstance(waypoints, list) and len(waypoints) >= 2 and isinstance(durations, list):
+        # One duration per segment, positive: the planner itself runs instead of a 422.
+        body["durations"] = [abs(d) % 10 + 0.5 if _number(d) else 1.0
+                             for d in [*durations, 1.0] * len(waypoints)][:len(waypoints) - 1]
     if JOB_KINDS and isinstance(body.get("kind"), str) and body["kind"] not in JOB_KINDS:
         body["kind"] = _pick(JOB_KINDS, body["kind"])
     if isinstance(body.get("params"), dict):
         body["params"] = _fit_body(body["params"], None)
     return body
+
+
+def _fit_cylinder_lengths(body: dict, robot_id: str) -> dict:
+    """Give ``lengths`` the robot's cylinder names and lengths inside their strokes."""
+    strokes = CYLINDERS.get(robot_id)
+    lengths = body.get("lengths")
+    if not strokes or not isinstance(lengths, dict) or not lengths:
+        return body
+    names = sorted(strokes)
+    fitted = {}
+    for k, value in enumerate(lengths.values()):
+        lo, hi = strokes[names[k % len(names)]]
+        t = abs(value) % 1.0 if _number(value) else 0.5
+        fitted[names[k % len(names)]] = lo + t * (hi - lo)
+    return {**body, "lengths": fitted}
 
 
 @schema.hook
@@ -154,6 +190,8 @@ def map_case(context, case):
             dof = BUILTIN_DOF[case.path_parameters["robot_id"]]
         if isinstance(case.body, dict):
             case.body = _fit_body(case.body, dof)
+            if "robot_id" in params:
+                case.body = _fit_cylinder_lengths(case.body, case.path_parameters["robot_id"])
     return case
 
 
