@@ -1,48 +1,97 @@
 """``python -m app``: start the API (and the 3D viewer unless ``--no-viewer``).
 
-Every flag falls back to the environment variable ``KINOPLAN_<NAME>`` and then to the
-defaults of ``app.config.Settings``.
+The flags are ``app.config.Settings``'s fields, one each (``data_dir`` -> ``--data-dir``,
+its help the field's description). Every flag falls back to the environment variable
+``KINOPLAN_<NAME>`` and then to the field's default.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import sys
+import types
+import typing
 from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+from pydantic.fields import FieldInfo
 
 from .config import Settings
 
 log = logging.getLogger("kinoplan")
 
 
-def parse_args(argv: list[str] | None = None) -> Settings:
-    env = Settings()
+def flag_name(field: str) -> str:
+    """``data_dir`` -> ``--data-dir``."""
+    return "--" + field.replace("_", "-")
+
+
+def _value_type(annotation: Any) -> Any:
+    """The annotation without ``None`` (``str | None`` -> ``str``)."""
+    if typing.get_origin(annotation) in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(annotation) if a is not type(None)]
+        if len(args) == 1:
+            return args[0]
+    return annotation
+
+
+def _add_flag(p: argparse.ArgumentParser, name: str, info: FieldInfo, current: Any) -> None:
+    """One flag for the field ``name``, its default the value ``current`` that the
+    environment (or the field's default) gives."""
+    help_text = (info.description or name).replace("%", "%%")
+    env = f"KINOPLAN_{name.upper()}"
+    if current is None:
+        default = "unset"
+    else:  # repr=False marks a secret: its value is never printed
+        default = "%(default)s" if info.repr else "set"
+    kind = _value_type(info.annotation)
+    if kind is bool:
+        p.add_argument(flag_name(name), action="store_true", default=current,
+                       help=f"{help_text} (env {env}; default {default})")
+        return
+    kwargs: dict[str, Any] = {}
+    if typing.get_origin(kind) is typing.Literal:
+        kwargs["choices"] = list(typing.get_args(kind))
+    elif kind in (int, float, str, Path):
+        kwargs["type"] = kind
+    else:  # lists, dicts, ...: JSON, as pydantic-settings reads them from the environment
+        kwargs["type"] = json.loads
+    p.add_argument(flag_name(name), default=current, metavar=name.upper(),
+                   help=f"{help_text} (env {env}; default {default})", **kwargs)
+
+
+def build_parser(env: Settings | None = None) -> argparse.ArgumentParser:
+    """The argument parser: one flag per ``Settings`` field, defaults from ``env`` (by
+    default the settings the environment gives)."""
+    env = Settings() if env is None else env
     p = argparse.ArgumentParser(prog="python -m app", description=__doc__.splitlines()[0])
-    p.add_argument("--host", default=env.host, help="API bind address (default %(default)s)")
-    p.add_argument("--port", type=int, default=env.port, help="API port (default %(default)s)")
-    p.add_argument("--viewer-port", type=int, default=env.viewer_port,
-                   help="3D viewer port (default %(default)s)")
-    p.add_argument("--no-viewer", action="store_true", default=env.no_viewer,
-                   help="do not start the 3D viewer")
-    p.add_argument("--data-dir", type=Path, default=env.data_dir,
-                   help="directory of the SQLite store of custom robots and jobs "
-                   "(default %(default)s)")
-    p.add_argument("--workers", type=int, default=env.workers,
-                   help="job pool size (default: number of cores, %(default)s)")
-    p.add_argument("--jobs-backend", default=env.jobs_backend,
-                   help="'local' or 'dask://HOST:PORT' (default %(default)s)")
-    p.add_argument("--job-time-limit-s", type=float, default=env.job_time_limit_s,
-                   help="seconds a job may run, and the most one may ask for "
-                   "(default %(default)s)")
-    p.add_argument("--allowed-hosts", default=env.allowed_hosts,
-                   help="comma-separated Host names the API answers ('*' = any; default: the "
-                   "loopback names when bound to loopback, any otherwise)")
-    p.add_argument("--allowed-origins", default=env.allowed_origins,
-                   help="comma-separated origins of the pages that may open the 3D viewer "
-                   "(default: the viewer's own addresses)")
-    args = p.parse_args(argv)
-    return Settings(**{**env.model_dump(), **vars(args)})
+    for name, info in Settings.model_fields.items():
+        _add_flag(p, name, info, getattr(env, name))
+    return p
+
+
+def parse_args(argv: list[str] | None = None) -> Settings:
+    """Settings from the command line over the environment over the defaults; a value a
+    field rejects (e.g. ``--port 0``) is a usage error naming its flag."""
+    try:
+        env = Settings()
+    except ValidationError as exc:  # a bad KINOPLAN_* variable: name it, no traceback
+        err = exc.errors()[0]
+        name = f"KINOPLAN_{str(err['loc'][0]).upper()}" if err["loc"] else "KINOPLAN_*"
+        print(f"python -m app: error: {name}: {err['msg']}", file=sys.stderr)
+        raise SystemExit(2) from None
+    p = build_parser(env)
+    args = vars(p.parse_args(argv))
+    try:
+        return Settings(**args)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        field = str(err["loc"][0]) if err["loc"] else ""
+        p.error(f"{flag_name(field)}: {err['msg']}")
+        raise  # p.error exits; keeps type checkers content
 
 
 def main(argv: list[str] | None = None) -> int:

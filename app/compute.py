@@ -29,7 +29,7 @@ from typing import Any
 
 from starlette.concurrency import run_in_threadpool
 
-__all__ = ["ComputePool", "ComputeBusy", "ComputeFailed", "FieldProblem", "encode_json"]
+__all__ = ["ComputePool", "ComputeBusy", "ComputeFailed", "encode_json"]
 
 log = logging.getLogger(__name__)
 
@@ -43,20 +43,6 @@ class ComputeBusy(RuntimeError):
 
 class ComputeFailed(RuntimeError):
     """The worker process running the request died (answered 503)."""
-
-
-class FieldProblem(ValueError):
-    """A request field the computation found wrong: ``loc`` (below ``body``) and a message.
-    Raised in a worker process, it comes back intact (it pickles by its arguments) and the
-    route answers 422 naming ``loc``."""
-
-    def __init__(self, loc: list, msg: str) -> None:
-        super().__init__(loc, msg)
-        self.loc = list(loc)
-        self.msg = msg
-
-    def __str__(self) -> str:
-        return self.msg
 
 
 def encode_json(content: Any) -> bytes:

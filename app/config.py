@@ -12,35 +12,52 @@ __all__ = ["Settings"]
 
 
 class Settings(BaseSettings):
-    """Everything the service reads at start-up."""
+    """Everything the service reads at start-up.
+
+    Each field is also a flag of ``python -m app`` (``app.__main__``: ``data_dir`` is
+    ``--data-dir``, its help the field's ``description``) and reads ``KINOPLAN_<NAME>``;
+    a field with ``repr=False`` is a secret whose value is never shown.
+    """
 
     model_config = SettingsConfigDict(env_prefix="KINOPLAN_", extra="ignore")
 
-    host: str = "127.0.0.1"
-    port: int = Field(8000, ge=1, le=65535)
-    viewer_port: int = Field(8080, ge=1, le=65535)
-    no_viewer: bool = False
-    data_dir: Path = Path("./data")
-    workers: int = Field(default_factory=lambda: os.cpu_count() or 1, ge=1)
-    jobs_backend: str = "local"
-    api_key: str | None = None
-    max_queued_jobs: int = Field(1000, ge=1)
-    max_body_bytes: int = Field(64 * 1024 * 1024, ge=1024)
-    #: Seconds a job may run, and the most a job may ask for (``time_limit_s`` of POST /jobs);
-    #: a job still running then fails with "time limit of N s exceeded".
-    job_time_limit_s: float = Field(3600.0, ge=1, le=7 * 86_400)
-    #: ``Host`` names served (comma-separated, ``*`` = any); unset: the loopback names when
-    #: bound to a loopback address, any name otherwise (see ``app.limits.host_allow_list``).
-    allowed_hosts: str | None = None
-    #: Seconds a client may take to send a request head, and may stay silent mid-body.
-    header_timeout_s: float = Field(10.0, gt=0, le=600)
-    idle_timeout_s: float = Field(30.0, gt=0, le=3600)
-    #: Open connections served at once (503 above).
-    max_connections: int = Field(512, ge=1)
-    #: Worker processes for heavy synchronous requests (large workspaces, FK/IK batches,
-    #: plots), and how many such requests may wait for one (503 beyond).
-    compute_workers: int = Field(2, ge=1, le=64)
-    max_waiting_computations: int = Field(32, ge=1)
-    #: Pages that may open the 3D viewer (comma-separated origins, e.g.
-    #: ``https://viewer.example.com``); unset: the viewer's own addresses (``web.gate``).
-    allowed_origins: str | None = None
+    host: str = Field("127.0.0.1", description="API (and viewer) bind address")
+    port: int = Field(8000, ge=1, le=65535, description="API port")
+    viewer_port: int = Field(8080, ge=1, le=65535, description="3D viewer port")
+    no_viewer: bool = Field(False, description="do not start the 3D viewer")
+    data_dir: Path = Field(
+        Path("./data"), description="directory of the SQLite store of custom robots and jobs")
+    workers: int = Field(default_factory=lambda: os.cpu_count() or 1, ge=1,
+                         description="job worker processes (one per core unless set)")
+    jobs_backend: str = Field("local", description="'local' or 'dask://HOST:PORT'")
+    api_key: str | None = Field(
+        None, repr=False,
+        description="key every request that changes state must bear (Authorization: Bearer); "
+        "prefer the environment variable: a flag shows in the process list")
+    max_queued_jobs: int = Field(1000, ge=1, description="jobs waiting at once (503 beyond)")
+    max_body_bytes: int = Field(64 * 1024 * 1024, ge=1024,
+                                description="largest request body of any route, bytes")
+    job_time_limit_s: float = Field(
+        3600.0, ge=1, le=7 * 86_400,
+        description="seconds a job may run, and the most a job may ask for (time_limit_s of "
+        "POST /jobs); a job still running then fails with 'time limit of N s exceeded'")
+    allowed_hosts: str | None = Field(
+        None,
+        description="comma-separated Host names the API answers ('*' = any; unset: the "
+        "loopback names when bound to loopback, any otherwise; app.limits.host_allow_list)")
+    header_timeout_s: float = Field(10.0, gt=0, le=600,
+                                    description="seconds a client may take to send a request head")
+    idle_timeout_s: float = Field(30.0, gt=0, le=3600,
+                                  description="seconds a client may stay silent mid-body")
+    max_connections: int = Field(512, ge=1, description="open connections served at once "
+                                 "(503 above)")
+    compute_workers: int = Field(
+        2, ge=1, le=64,
+        description="worker processes for heavy synchronous requests (large workspaces, FK/IK "
+        "batches, plots)")
+    max_waiting_computations: int = Field(
+        32, ge=1, description="heavy requests that may wait for a compute worker (503 beyond)")
+    allowed_origins: str | None = Field(
+        None,
+        description="comma-separated origins of the pages that may open the 3D viewer, e.g. "
+        "https://viewer.example.com (unset: the viewer's own addresses; web.gate)")

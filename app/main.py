@@ -10,6 +10,8 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from kinematics.errors import FieldError
+
 from . import __version__
 from .api.deps import require_api_key
 from .api.routes import (
@@ -134,6 +136,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             detail = [{"loc": [], "msg": str(detail), "type": "http_error"}]
         return JSONResponse(status_code=exc.status_code, content={"detail": detail},
                             headers=getattr(exc, "headers", None))
+
+    @api.exception_handler(FieldError)
+    async def _field_error(request: Request, exc: FieldError) -> JSONResponse:
+        # A domain check of kinematics or planning found a field of the request wrong and
+        # named it (relative to the body); wherever it was raised, a worker process
+        # included, the answer is a 422 at that field.
+        return JSONResponse(status_code=422, content={"detail": [
+            {"loc": ["body", *exc.loc], "msg": exc.message, "type": "value_error"}]})
 
     @api.exception_handler(StoreError)
     async def _store_error(request: Request, exc: StoreError) -> JSONResponse:

@@ -35,7 +35,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from .errors import KinematicsError
+from .errors import FieldError, KinematicsError, loc_from_path
 from .model import MAX_LENGTH_MM, RobotModel
 
 __all__ = [
@@ -65,13 +65,18 @@ PAIR_LENGTH_TOL = 0.5
 _TWO_PI = 2.0 * math.pi
 
 
-class CylinderError(KinematicsError):
-    """Invalid cylinder data or input; ``field`` names the field at fault."""
+class CylinderError(FieldError, KinematicsError):
+    """Invalid cylinder data or input; ``field`` names the field at fault
+    (``cylinders[0].r1``), ``loc`` the same as parts. Given as parts (``("lengths", name)``),
+    a field keeps a cylinder name whole, dots and all."""
 
-    def __init__(self, field_path: str, message: str):
-        super().__init__(f"{field_path}: {message}")
-        self.field = field_path
-        self.message = message
+    def __init__(self, field_path: str | tuple[str | int, ...], message: str):
+        parts = isinstance(field_path, tuple)
+        super().__init__(field_path if parts else loc_from_path(field_path), message)
+        self.field = ".".join(map(str, field_path)) if parts else field_path
+
+    def __str__(self) -> str:
+        return f"{self.field}: {self.message}"
 
 
 # ---- geometry shared by the mechanisms -------------------------------------------------
@@ -589,7 +594,8 @@ class CylinderSet:
         m, k = self._locate(name)
         return self.mechanisms[m].limits[k]
 
-    def _locate(self, name: str, field_path: str | None = None) -> tuple[int, int]:
+    def _locate(self, name: str, field_path: str | tuple[str, str] | None = None
+                ) -> tuple[int, int]:
         try:
             return self._index[name]
         except KeyError:
@@ -655,7 +661,7 @@ class CylinderSet:
         """
         given: dict[str, np.ndarray] = {}
         for name, value in lengths.items():
-            path = f"lengths.{name}"
+            path = ("lengths", name)
             self._locate(name, path)
             L = np.asarray(value, dtype=float)
             if not np.all(np.isfinite(L)):
@@ -684,7 +690,7 @@ class CylinderSet:
             for k, theta in zip(present, thetas):
                 if not np.all(np.isfinite(theta)):
                     raise CylinderError(
-                        f"lengths.{mech.names[k]}", "no joint angle gives this length (the "
+                        ("lengths", mech.names[k]), "no joint angle gives this length (the "
                         "cylinder data is inconsistent; see check())"
                     )
             if len(present) > 1:
@@ -693,7 +699,7 @@ class CylinderSet:
                 gap = np.abs(implied - given[mech.names[present[1]]])
                 if np.any(gap > pair_tol):
                     raise CylinderError(
-                        f"lengths.{mech.names[present[1]]}",
+                        ("lengths", mech.names[present[1]]),
                         f"disagrees with '{mech.names[present[0]]}' by {float(gap.max()):.3f} "
                         f"mm (more than {pair_tol} mm): the two cylinders of a pair move "
                         "together; give one, or lengths that match",
@@ -710,7 +716,7 @@ class CylinderSet:
             np.broadcast_to(self._rows(qd_other, "qd"), q.shape), dtype=float)
         done: set[int] = set()
         for name, v in speeds.items():
-            m, k = self._locate(name, f"speeds.{name}")
+            m, k = self._locate(name, ("speeds", name))
             mech = self.mechanisms[m]
             if m in done:
                 continue

@@ -20,7 +20,8 @@ the rule no longer keeps the drill perpendicular; theta5 and theta6 are then sol
 with theta1, theta2, d3 by a batched Gauss-Newton iteration started from the roll-0 answer
 and continued in roll.
 
-Frames and units: holes in the world frame (that of ``fk``), mm; joint values rad / mm.
+Frames and units (docs/conventions.md): holes in the world frame, in which ``fk`` reports
+``T_world_tool``, mm; the face normal is the base frame's x axis; joint values rad / mm.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import math
 
 import numpy as np
 
+from .errors import FieldError
 from .fk import fk
 from .ik.result import IKResult, IKStatus
 from .jacobian import jacobian_and_pose
@@ -104,13 +106,15 @@ def _holes(hole_xyz) -> np.ndarray:
     try:
         P = np.asarray(hole_xyz, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ValueError("hole_xyz: must be numbers of shape (N, 3) or (3,)") from exc
+        raise FieldError("holes", "hole_xyz: must be numbers of shape (N, 3) or (3,)") from exc
     P = P[None] if P.ndim == 1 else P
     if P.ndim != 2 or P.shape[1] != 3:
-        raise ValueError(f"hole_xyz: must have shape (N, 3) or (3,), got {list(P.shape)}")
+        raise FieldError("holes",
+                         f"hole_xyz: must have shape (N, 3) or (3,), got {list(P.shape)}")
     bad = ~np.all(np.isfinite(P), axis=1)
     if bad.any():
-        raise ValueError(f"hole_xyz[{int(np.argmax(bad))}]: has a NaN or infinite entry")
+        k = int(np.argmax(bad))
+        raise FieldError(("holes", k), f"hole_xyz[{k}]: has a NaN or infinite entry")
     return P
 
 
@@ -209,14 +213,15 @@ def drill_ik(
     outside the joint limits give ``IKStatus.OUT_OF_LIMITS`` with the solution in
     ``solutions`` and a message naming each joint and limit at fault.
 
-    Raises ``ValueError`` naming the field if the model lacks the drilling arm's structure
-    or an input is malformed.
+    Raises ``ValueError`` naming the field if the model lacks the drilling arm's structure,
+    and ``FieldError`` at ``holes`` (the service's name for ``hole_xyz``), ``d7`` or ``roll``
+    if an input is malformed.
     """
     check_drilling_structure(model)
     P = _holes(hole_xyz)
     for name, v in (("d7", d7), ("roll", roll)):
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise ValueError(f"{name}: must be a finite number, got {v!r}")
+            raise FieldError(name, f"{name}: must be a finite number, got {v!r}")
     T_base_world = invert_pose(model.base)
     P_base = P @ T_base_world[:3, :3].T + T_base_world[:3, 3]
     normal = model.base[:3, 0]

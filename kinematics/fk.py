@@ -1,4 +1,6 @@
-"""Batched forward kinematics for every convention of ``RobotModel``."""
+"""Batched forward kinematics for every convention of ``RobotModel``: tool poses
+``T_world_tool = base · chain(q) · tool`` and every link frame, in the world frame (frames,
+units and layouts: docs/conventions.md)."""
 
 from __future__ import annotations
 
@@ -9,20 +11,33 @@ import numpy as np
 from .model import RobotModel
 from .transforms import rot_x, trans
 
-__all__ = ["as_batch", "fk", "fk_frames", "joint_axes"]
+__all__ = ["as_batch", "batch_of", "fk", "fk_frames", "joint_axes"]
+
+
+def batch_of(model: RobotModel, q) -> tuple[np.ndarray, tuple[int, ...]]:
+    """Normalise ``q (*, dof)`` to ``(N, dof)`` float64 rows, with the leading shape ``*``
+    (``()`` for a single ``(dof,)``) that the results are reshaped back to."""
+    q = np.asarray(q, dtype=float)
+    if q.ndim == 0 or q.shape[-1] != model.dof:
+        raise ValueError(
+            f"q must have shape (..., {model.dof}) (e.g. (N, {model.dof}) or ({model.dof},)) "
+            f"for robot '{model.id}', got {list(q.shape)}"
+        )
+    return q.reshape(-1, model.dof), q.shape[:-1]
 
 
 def as_batch(model: RobotModel, q) -> tuple[np.ndarray, bool]:
-    """Normalise ``q`` to ``(N, dof)`` float64; also says whether a single ``(dof,)`` was given."""
+    """Normalise ``q`` to ``(N, dof)`` float64; also says whether a single ``(dof,)`` was given.
+
+    Only ``(N, dof)`` and ``(dof,)`` are accepted; ``batch_of`` takes any leading shape."""
     q = np.asarray(q, dtype=float)
-    single = q.ndim == 1
-    q2 = q[None, :] if single else q
-    if q2.ndim != 2 or q2.shape[1] != model.dof:
+    if q.ndim > 2:
         raise ValueError(
             f"q must have shape (N, {model.dof}) or ({model.dof},) for robot "
             f"'{model.id}', got {list(q.shape)}"
         )
-    return q2, single
+    q2, lead = batch_of(model, q)
+    return q2, lead == ()
 
 
 def _right_multiply(T: np.ndarray, A: np.ndarray) -> np.ndarray:
@@ -173,26 +188,31 @@ def _chain(model: RobotModel, q: np.ndarray, keep: bool) -> tuple[np.ndarray, li
 
 
 def fk(model: RobotModel, q) -> np.ndarray:
-    """Tool poses. ``q: (N, dof) -> (N, 4, 4)``, or ``(dof,) -> (4, 4)``; base frame, mm."""
-    q2, single = as_batch(model, q)
+    """Tool poses ``T_world_tool = base · chain(q) · tool`` in mm (docs/conventions.md).
+
+    ``q: (*, dof) -> (*, 4, 4)``: any leading batch shape, e.g. ``(dof,) -> (4, 4)`` or
+    ``(N, dof) -> (N, 4, 4)``.
+    """
+    q2, lead = batch_of(model, q)
     if model.convention == "poe":
         T, _ = _chain(model, q2, keep=False)
         T = _right_multiply(T, model.home @ model.tool)
     else:
         cols, _ = _dh_columns(model, q2, keep=False)
         T = _columns_to_poses(_times_constant(cols, model.tool), q2.shape[0])
-    return T[0] if single else T
+    return T.reshape(lead + (4, 4))
 
 
 def fk_frames(model: RobotModel, q) -> np.ndarray:
-    """Every link frame. ``q: (N, dof) -> (N, dof + 1, 4, 4)`` (or ``(dof+1, 4, 4)``).
+    """Every link frame in the world frame. ``q: (*, dof) -> (*, dof + 1, 4, 4)``.
 
-    Entry 0 is the base, entry i the frame after joint i; the last entry is the tool pose
-    (tool transform applied). For product-of-exponentials models the intermediate frames are
-    placed at each joint's axis point with the base orientation at q = 0, carried by the
-    motion of the joints before and including it.
+    Entry 0 is the base frame (``T_world_base``, the model's ``base``), entry i the frame
+    after joint i; the last entry is the tool pose ``T_world_tool`` (tool transform applied,
+    equal to ``fk``). For product-of-exponentials models the intermediate frames are placed
+    at each joint's axis point with the base orientation at q = 0, carried by the motion of
+    the joints before and including it.
     """
-    q2, single = as_batch(model, q)
+    q2, lead = batch_of(model, q)
     T, frames = _chain(model, q2, keep=True)
     if model.convention == "poe":
         for i, j in enumerate(model.joints[:-1]):
@@ -203,7 +223,7 @@ def fk_frames(model: RobotModel, q) -> np.ndarray:
         T = T @ model.home
     frames[-1] = T @ model.tool
     out = np.stack(frames, axis=1)
-    return out[0] if single else out
+    return out.reshape(lead + (model.dof + 1, 4, 4))
 
 
 def joint_axes(model: RobotModel, q2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -6,30 +6,31 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .fk import as_batch, joint_axes
+from .fk import batch_of, joint_axes
 from .model import RobotModel
 
 __all__ = ["jacobian", "jacobian_and_pose", "Dexterity", "dexterity"]
 
 
 def jacobian_and_pose(model: RobotModel, q) -> tuple[np.ndarray, np.ndarray]:
-    """Geometric Jacobian and tool pose: ``q: (N, dof) -> ((N, 6, dof), (N, 4, 4))``.
+    """Geometric Jacobian and tool pose: ``q: (*, dof) -> ((*, 6, dof), (*, 4, 4))``.
 
     Rows are (vx, vy, vz) of the tool point in mm per joint unit, then (wx, wy, wz) in rad
-    per joint unit, all in the base (world) frame in which ``fk`` reports poses.
+    per joint unit, all in the world frame in which ``fk`` reports ``T_world_tool``
+    (docs/conventions.md).
     """
-    q2, single = as_batch(model, q)
+    q2, lead = batch_of(model, q)
     axes, points, T_tool = joint_axes(model, q2)
     p_tool = T_tool[:, None, :3, 3]
     rev = model.revolute[None, :, None]
     lin = np.where(rev, np.cross(axes, p_tool - points), axes)
     ang = np.where(rev, axes, 0.0)
     J = np.concatenate([np.swapaxes(lin, 1, 2), np.swapaxes(ang, 1, 2)], axis=1)
-    return (J[0], T_tool[0]) if single else (J, T_tool)
+    return J.reshape(lead + (6, model.dof)), T_tool.reshape(lead + (4, 4))
 
 
 def jacobian(model: RobotModel, q) -> np.ndarray:
-    """Geometric Jacobian ``q: (N, dof) -> (N, 6, dof)`` (or ``(dof,) -> (6, dof)``)."""
+    """Geometric Jacobian ``q: (*, dof) -> (*, 6, dof)``, rows (v, ω), world frame."""
     return jacobian_and_pose(model, q)[0]
 
 

@@ -14,8 +14,9 @@ Per joint (``Joint``):
   ``point`` on the axis, both in the base frame at q = 0; the model's ``home`` is the tool
   flange pose at q = 0. ``offset`` is added to q as for D-H joints.
 
-The tool pose is ``base @ prod_i T_{i-1,i}(q_i) @ tool`` (``home`` inserted before ``tool`` for
-product-of-exponentials models).
+The tool pose is ``T_world_tool = base @ prod_i T_{i-1,i}(q_i) @ tool`` (``home`` inserted
+before ``tool`` for product-of-exponentials models): ``base`` is ``T_world_base`` and ``tool``
+is ``T_flange_tool`` (frames, units and layouts: docs/conventions.md).
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .errors import KinematicsError
+from .errors import FieldError, KinematicsError, loc_from_path
 from .transforms import rigidity_error
 
 __all__ = ["Joint", "RobotModel", "ModelError", "MAX_DOF", "MAX_LENGTH_MM", "MAX_ANGLE_RAD",
@@ -56,13 +57,16 @@ _JOINT_KEYS = {
 _MODEL_KEYS = {"id", "name", "convention", "joints", "base", "tool", "home"}
 
 
-class ModelError(KinematicsError):
-    """A robot model description is invalid; ``field`` names the JSON field at fault."""
+class ModelError(FieldError, KinematicsError):
+    """A robot model description is invalid; ``field`` names the JSON field at fault
+    (``joints[2].lower``), ``loc`` the same as parts (``("joints", 2, "lower")``)."""
 
     def __init__(self, field_path: str, message: str):
-        super().__init__(f"{field_path}: {message}")
+        super().__init__(loc_from_path(field_path), message)
         self.field = field_path
-        self.message = message
+
+    def __str__(self) -> str:
+        return f"{self.field}: {self.message}"
 
 
 @dataclass(frozen=True)

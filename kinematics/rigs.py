@@ -1,10 +1,12 @@
 """Rigs: several arms on one carrier, each a ``RobotModel`` placed by its mount.
 
 A rig description (JSON, in ``kinematics/robots/<id>.json`` for the built-ins) names each
-arm, the model it is an instance of and its mount: the pose ``T_rig_mount (4, 4)`` of the
-arm's base frame in the rig frame (mm). The rig's arms are full ``RobotModel`` values with
-the mount folded into their base (``base = T_rig_mount @ arm.base``), so ``fk``, IK and every
-other function work on them unchanged and report poses in the rig frame.
+arm, the model it is an instance of and its mount: the pose ``T_rig_mount (4, 4)`` in the
+rig frame (mm) of the arm's own world frame, the frame its model's ``base`` is given in. The
+rig's arms are full ``RobotModel`` values with the mount folded into their base
+(``base = T_rig_mount @ arm.base``), so ``fk``, IK and every other function work on them
+unchanged and report poses in the rig frame, their world frame:
+``T_rig_tool = mount · base · chain(q) · tool`` (docs/conventions.md).
 
 Arm ids are ``"<rig id>-<arm name>"`` (the model id check allows letters, digits, '_' and
 '-', so not ``"<rig>.<arm>"``).

@@ -1,6 +1,6 @@
 """Rigid-body transforms on batches of 4x4 homogeneous matrices.
 
-Conventions (used everywhere in kinoplan):
+Conventions (used everywhere in kinoplan; the whole list: docs/conventions.md):
 
 * Lengths in mm, angles in rad.
 * ``T_a_b`` maps coordinates in frame ``b`` to frame ``a``: ``p_a = T_a_b @ p_b``.

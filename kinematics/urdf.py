@@ -11,7 +11,8 @@ The kinematic tree (no geometry, no inertia: the model carries none)::
     link_{i-1} --[joint i's name: revolute/prismatic]--> link_i      (i = 1..dof)
     link_dof --[tool: fixed]--> tool
 
-so the pose of link ``tool`` in ``base_link`` is ``kinematics.fk.fk`` (metres instead of mm).
+so ``base_link`` is the world frame and the pose of link ``tool`` in it is ``T_world_tool``
+of ``kinematics.fk.fk`` (metres instead of mm).
 Each joint's ``origin`` is the constant part of its transform, its ``axis`` the motion axis:
 
 * modified D-H: ``origin = RotX(alpha) TransX(a) RotZ(offset) TransZ(d)`` (revolute) or

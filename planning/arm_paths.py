@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from kinematics.cylinders import CylinderError, CylinderSet
+from kinematics.errors import FieldError
 from kinematics.fk import fk, fk_frames
 from kinematics.jacobian import jacobian_and_pose
 from kinematics.model import RobotModel
@@ -44,6 +45,7 @@ from .bspline import quintic_bspline
 from .optimisers.base import ProgressFn
 from .paths import PathResult, plan_path
 from .scene import Capsule, Scene
+from .status import PlanStatus
 from .trajectory import Trajectory
 
 __all__ = ["ArmPathResult", "plan_arm_path", "position_ik", "link_capsules",
@@ -69,7 +71,11 @@ class ArmPathResult:
     arc lengths ``s (S,)`` mm; ``q (S, dof)`` the joints there; ``trajectory`` the joint
     B-spline (None on failure before it); ``cylinders`` lengths (mm) by name ``(S,)`` for
     robots that have cylinders. ``arm_min_clearance``: least clearance (mm) of any link
-    capsule to any obstacle over the samples."""
+    capsule to any obstacle over the samples. ``status``: ``ok``; the tool path's own
+    failure; ``unreachable`` (an endpoint or a sample of the path out of reach);
+    ``collision`` (a link hits an obstacle, at a sample or along the joint trajectory);
+    ``out_of_limits`` (the joint trajectory leaves the joint limits or a cylinder its
+    stroke)."""
 
     tool: PathResult
     points: np.ndarray
@@ -79,15 +85,19 @@ class ArmPathResult:
     cylinders: dict[str, np.ndarray] | None
     cylinders_within_stroke: bool | None
     arm_min_clearance: float
-    success: bool
+    status: PlanStatus
     message: str
     extra: dict = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        return self.status is PlanStatus.OK
 
     def to_dict(self, dt: float | None = None) -> dict[str, Any]:
         """JSON-ready dict: the tool path's fields plus ``joint_path``, ``trajectory``
         (sampled every ``dt`` s, default duration/200) and ``cylinders``."""
         out = self.tool.to_dict()
-        out.update(success=self.success, message=self.message,
+        out.update(success=self.success, status=self.status.value, message=self.message,
                    arm_min_clearance=_num(self.arm_min_clearance),
                    joint_path=self.q.tolist(), tool_samples=self.points.tolist())
         if self.trajectory is not None:
@@ -196,9 +206,9 @@ def _radii(model: RobotModel, link_radius) -> np.ndarray:
     r = np.broadcast_to(np.asarray(link_radius, dtype=float), (model.dof,)).copy() \
         if np.ndim(link_radius) == 0 else np.asarray(link_radius, dtype=float)
     if r.shape != (model.dof,):
-        raise ValueError(f"link_radius must be one number or {model.dof} numbers")
+        raise FieldError("link_radius", f"link_radius must be one number or {model.dof} numbers")
     if not np.all(np.isfinite(r)) or np.any(r < 0):
-        raise ValueError("link_radius must be finite and non-negative")
+        raise FieldError("link_radius", "link_radius must be finite and non-negative")
     return r
 
 
@@ -229,12 +239,12 @@ def _resample(path: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]
     return np.vstack(pts), np.concatenate(s)
 
 
-def _fail(tool: PathResult, message: str, **kw) -> ArmPathResult:
+def _fail(tool: PathResult, status: PlanStatus, message: str, **kw) -> ArmPathResult:
     empty = np.empty((0, 3))
     base = dict(points=empty, s=np.empty(0), q=np.empty((0, 0)), trajectory=None,
                 cylinders=None, cylinders_within_stroke=None, arm_min_clearance=math.nan)
     base.update(kw)
-    return ArmPathResult(tool=tool, success=False, message=message, **base)
+    return ArmPathResult(tool=tool, status=status, message=message, **base)
 
 
 def _unreachable(model: RobotModel, name: str, point: np.ndarray, err: float) -> str:
@@ -270,7 +280,7 @@ def plan_arm_path(
     q_start=None,
     keep_out_radius: float | None = None,
 ) -> ArmPathResult:
-    """Plan the tool of ``model`` from ``start`` to ``goal`` (mm, base frame) in ``scene``.
+    """Plan the tool of ``model`` from ``start`` to ``goal`` (mm, world frame) in ``scene``.
 
     ``link_radius``: mm, one number or one per link (``dof``); ``spacing``: mm between IK
     samples; ``waypoint_spacing``: mm of tool path between trajectory waypoints;
@@ -278,38 +288,39 @@ def plan_arm_path(
     on top of margin and link radius; ``q_start``: joints to start from (default:
     position IK); ``keep_out_radius``: mm, keeps the tool path that far from the base's z
     axis (``base_keep_out``; the arm itself is checked against the scene only). Invalid
-    input raises ValueError naming the field; unreachable endpoints, a tool path the arm
-    cannot follow and arm collisions give ``success=False``.
+    input raises ``FieldError`` naming the field; unreachable endpoints, a tool path the arm
+    cannot follow and arm collisions give a failed ``status``.
     """
     if not (isinstance(clearance_slack, int | float) and clearance_slack >= 0):
-        raise ValueError("clearance_slack must be a non-negative number")
+        raise FieldError("clearance_slack", "clearance_slack must be a non-negative number")
     for name, value in (("spacing", spacing), ("waypoint_spacing", waypoint_spacing),
                         ("duration", duration)):
         if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-            raise ValueError(f"{name} must be a positive number")
+            raise FieldError(name, f"{name} must be a positive number")
     radii = _radii(model, link_radius)
     start = scene.check_endpoint(start, "start")
     goal = scene.check_endpoint(goal, "goal")
     report = progress or (lambda f: None)
     nothing = PathResult(np.empty((0, 3)), math.inf, math.nan, 0.0, np.empty(0), algorithm,
-                         0, False, "not planned")
+                         0, PlanStatus.UNREACHABLE, "not planned")
     if q_start is not None:
         q_start = np.asarray(q_start, dtype=float)
         if q_start.shape != (model.dof,) or not np.all(np.isfinite(q_start)):
-            raise ValueError(f"q_start must be {model.dof} finite numbers")
+            raise FieldError("q_start", f"q_start must be {model.dof} finite numbers")
         if not model.within_limits(q_start):
-            raise ValueError("q_start is outside the joint limits: "
+            raise FieldError("q_start", "q_start is outside the joint limits: "
                              + ", ".join(model.limit_violations(q_start)))
         if np.linalg.norm(fk(model, q_start)[:3, 3] - start) > REACH_TOL:
-            raise ValueError("q_start does not put the tool at start")
+            raise FieldError("q_start", "q_start does not put the tool at start")
         q0 = q_start
     else:
         q0, err = position_ik(model, start)
         if q0 is None:
-            return _fail(nothing, _unreachable(model, "start", start, err))
+            return _fail(nothing, PlanStatus.UNREACHABLE,
+                         _unreachable(model, "start", start, err))
     q_goal, err = position_ik(model, goal)
     if q_goal is None:
-        return _fail(nothing, _unreachable(model, "goal", goal, err))
+        return _fail(nothing, PlanStatus.UNREACHABLE, _unreachable(model, "goal", goal, err))
     report(0.05)
 
     # The tool point carries the end of the last links: its path keeps their radius (the
@@ -319,21 +330,22 @@ def plan_arm_path(
                        scene.safety_margin + float(radii.max()) + clearance_slack)
     if keep_out_radius is not None:
         if not (math.isfinite(keep_out_radius) and keep_out_radius > 0):
-            raise ValueError("keep_out_radius must be a positive number")
+            raise FieldError("keep_out_radius", "keep_out_radius must be a positive number")
         tool_scene = tool_scene.with_obstacles([base_keep_out(model, keep_out_radius)])
     tool_scene.check_endpoint(start, "start")
     tool_scene.check_endpoint(goal, "goal")
     tool = plan_path(tool_scene, start, goal, algorithm, seed, params,
                      progress=lambda f: report(0.05 + 0.6 * f))
     if not tool.success:
-        return _fail(tool, tool.message)
+        return _fail(tool, tool.status, tool.message)
     points, s = _resample(tool.path, spacing)
     Q = np.empty((len(points), model.dof))
     q = q0
     for i, p in enumerate(points):
         qn, e = _dls(model, q[None], p, 50, REACH_TOL / 10, centring=CENTRING)
         if e[0] > REACH_TOL:
-            return _fail(tool, f"the tool path leaves the arm's reach at {s[i]:.0f} mm along "
+            return _fail(tool, PlanStatus.UNREACHABLE,
+                         f"the tool path leaves the arm's reach at {s[i]:.0f} mm along "
                                f"it, {np.round(p, 1).tolist()} mm (closest reachable "
                                f"{e[0]:.1f} mm away)", points=points[:i], s=s[:i], q=Q[:i])
         q = qn[0]
@@ -344,7 +356,8 @@ def plan_arm_path(
     arm_min = float(C.min())
     if arm_min < scene.safety_margin:
         i, k, j = np.unravel_index(int(np.argmin(C)), C.shape)
-        return _fail(tool, f"the arm hits an obstacle: {_link_name(model, int(k))} comes "
+        return _fail(tool, PlanStatus.COLLISION,
+                     f"the arm hits an obstacle: {_link_name(model, int(k))} comes "
                            f"{C[i, k, j]:.1f} mm from obstacles[{j}] (needs "
                            f"{scene.safety_margin} mm) at {s[i]:.0f} mm along the tool path",
                      points=points, s=s, q=Q, arm_min_clearance=arm_min)
@@ -378,18 +391,21 @@ def plan_arm_path(
     extra = {"waypoints": Q[idx].tolist(), "trajectory_min_clearance": float(Ct),
              "trajectory_within_limits": limits_ok, "trajectory_tool_deviation": tool_dev,
              "q_goal_ik": q_goal.tolist()}
-    problems = []
+    problems: list[tuple[PlanStatus, str]] = []
     if not limits_ok:
-        problems.append("the joint trajectory leaves the joint limits between waypoints")
+        problems.append((PlanStatus.OUT_OF_LIMITS,
+                         "the joint trajectory leaves the joint limits between waypoints"))
     if Ct < scene.safety_margin:
-        problems.append(f"the joint trajectory brings the arm {Ct:.1f} mm from an obstacle "
-                        "between waypoints (try a smaller waypoint_spacing)")
+        problems.append((PlanStatus.COLLISION,
+                         f"the joint trajectory brings the arm {Ct:.1f} mm from an obstacle "
+                         "between waypoints (try a smaller waypoint_spacing)"))
     if cyl_ok is False:
-        problems.append("a cylinder leaves its stroke")
+        problems.append((PlanStatus.OUT_OF_LIMITS, "a cylinder leaves its stroke"))
     return ArmPathResult(
         tool=tool, points=points, s=s, q=Q, trajectory=traj, cylinders=cyl,
-        cylinders_within_stroke=cyl_ok, arm_min_clearance=arm_min, success=not problems,
-        message="; ".join(problems) if problems else
+        cylinders_within_stroke=cyl_ok, arm_min_clearance=arm_min,
+        status=problems[0][0] if problems else PlanStatus.OK,
+        message="; ".join(why for _, why in problems) if problems else
         "clear tool path, reachable at every sample, whole arm clear", extra=extra)
 
 

@@ -29,8 +29,11 @@ from scipy.optimize import minimize
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from kinematics.errors import FieldError
+
 from .optimisers.base import ProgressFn
 from .scene import Scene
+from .status import PlanStatus
 
 __all__ = ["RawPlan", "visibility_graph_path", "certified_shortest_path", "tighten",
            "plan_auto", "plan_rrt_star"]
@@ -38,12 +41,14 @@ __all__ = ["RawPlan", "visibility_graph_path", "certified_shortest_path", "tight
 
 @dataclass(frozen=True)
 class RawPlan:
-    """A planner's path before ``plan_path`` verifies and shortens it (None if none)."""
+    """A planner's path before ``plan_path`` verifies and shortens it (None if none, and
+    ``status`` then says why: ``no_path`` or ``budget_spent``)."""
 
     path: np.ndarray | None
     history: np.ndarray
     evaluations: int
     extra: dict = field(default_factory=dict)
+    status: PlanStatus = PlanStatus.OK
 
 
 def _slack(scene: Scene) -> float:
@@ -240,10 +245,14 @@ def plan_auto(scene: Scene, start, goal, rng: np.random.Generator, *,
     rel_offset = float(params.pop("rel_offset", 0.02))
     rounds = int(params.pop("rounds", 1))
     if params:
-        raise ValueError(f"params.{sorted(params)[0]} is not a parameter of auto; known: "
-                         "rel_offset, rounds, samples")
-    if samples < 4 or rounds < 0 or not rel_offset > 0:
-        raise ValueError("params: samples must be >= 4, rounds >= 0, rel_offset > 0")
+        name = sorted(params)[0]
+        raise FieldError(("params", name), f"params.{name} is not a parameter of auto; "
+                         "known: rel_offset, rounds, samples")
+    for name, bad in (("samples", samples < 4), ("rounds", rounds < 0),
+                      ("rel_offset", not rel_offset > 0)):
+        if bad:
+            raise FieldError(("params", name), "params: samples must be >= 4, rounds >= 0, "
+                             "rel_offset > 0")
     start, goal = np.asarray(start, float), np.asarray(goal, float)
     t0 = time.perf_counter()
     straight = np.vstack([start, goal])
@@ -255,7 +264,7 @@ def plan_auto(scene: Scene, start, goal, rng: np.random.Generator, *,
     if path is None:
         return RawPlan(None, np.empty(0), edges, {
             "message": "auto: no clear path in the visibility graph: start and goal may be "
-                       "separated by obstacles"})
+                       "separated by obstacles"}, PlanStatus.NO_PATH)
     from .paths import shortcut
 
     graph_len = _length(path)
@@ -281,10 +290,14 @@ def plan_rrt_star(scene: Scene, start, goal, rng: np.random.Generator, *,
     gamma = float(params.pop("gamma", 2.0 * scene.diagonal))
     time_limit = params.pop("time_limit", None)
     if params:
-        raise ValueError(f"params.{sorted(params)[0]} is not a parameter of rrt_star; known: "
-                         "gamma, goal_bias, samples, step, time_limit")
-    if n_samples < 1 or not step > 0 or not 0 <= goal_bias <= 1 or not gamma > 0:
-        raise ValueError("params: samples >= 1, step > 0, 0 <= goal_bias <= 1, gamma > 0")
+        name = sorted(params)[0]
+        raise FieldError(("params", name), f"params.{name} is not a parameter of rrt_star; "
+                         "known: gamma, goal_bias, samples, step, time_limit")
+    for name, bad in (("samples", n_samples < 1), ("step", not step > 0),
+                      ("goal_bias", not 0 <= goal_bias <= 1), ("gamma", not gamma > 0)):
+        if bad:
+            raise FieldError(("params", name), "params: samples >= 1, step > 0, "
+                             "0 <= goal_bias <= 1, gamma > 0")
     margin = scene.safety_margin + _slack(scene)
     start, goal = np.asarray(start, float), np.asarray(goal, float)
 
@@ -353,7 +366,8 @@ def plan_rrt_star(scene: Scene, start, goal, rng: np.random.Generator, *,
     history.append(best_cost)
     if best_node < 0:
         return RawPlan(None, np.array(history), n, {
-            "message": f"rrt_star: no path to the goal after {n} tree nodes"})
+            "message": f"rrt_star: no path to the goal after {n} tree nodes"},
+            PlanStatus.BUDGET_SPENT)
     chain, k = [], best_node
     while k >= 0:
         chain.append(X[k])

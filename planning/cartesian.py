@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinematics.errors import FieldError
 from kinematics.fk import fk
 from kinematics.ik import solve_ik
 from kinematics.model import RobotModel
@@ -26,12 +27,13 @@ DEVIATION_OVERSAMPLING = 20
 
 
 def line_points(start, end, n: int) -> np.ndarray:
-    """``n`` points evenly spaced from ``start`` to ``end`` (mm) -> ``(n, 3)``."""
+    """``n`` points evenly spaced from ``start`` to ``end`` (mm) -> ``(n, 3)``; ``FieldError``
+    naming ``points`` (``n``) or ``end``."""
     start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
     if n < 2:
-        raise ValueError("points: a path needs at least 2 points")
+        raise FieldError("points", "points: a path needs at least 2 points")
     if np.linalg.norm(end - start) < 1e-9:
-        raise ValueError("end: a line needs distinct start and end points")
+        raise FieldError("end", "end: a line needs distinct start and end points")
     return start + np.linspace(0.0, 1.0, n)[:, None] * (end - start)
 
 
@@ -41,24 +43,25 @@ def ellipse_points(center, radii, n: int, *, normal=(0.0, 0.0, 1.0), major=None,
 
     ``radii = (a, b)`` along the major direction ``major`` (default: any direction normal to
     ``normal``) and ``normal x major``; the first point is at ``center + a * major``.
-    ``closed`` repeats the first point at the end.
+    ``closed`` repeats the first point at the end. ``FieldError`` naming the argument at
+    fault (``points`` for ``n``).
     """
     c = np.asarray(center, dtype=float)
     a, b = (float(r) for r in radii)
     if a <= 0 or b <= 0:
-        raise ValueError("radii: both radii must be positive")
+        raise FieldError("radii", "radii: both radii must be positive")
     if n < 3:
-        raise ValueError("points: an ellipse needs at least 3 points")
+        raise FieldError("points", "points: an ellipse needs at least 3 points")
     nz = np.asarray(normal, dtype=float)
     if np.linalg.norm(nz) < 1e-12:
-        raise ValueError("normal: must be a non-zero vector")
+        raise FieldError("normal", "normal: must be a non-zero vector")
     nz = nz / np.linalg.norm(nz)
     if major is None:
         helper = np.array([1.0, 0.0, 0.0]) if abs(nz[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
         major = helper - nz * (helper @ nz)
     ex = np.asarray(major, dtype=float) - nz * (np.asarray(major, dtype=float) @ nz)
     if np.linalg.norm(ex) < 1e-12:
-        raise ValueError("major: must not be parallel to the normal")
+        raise FieldError("major", "major: must not be parallel to the normal")
     ex /= np.linalg.norm(ex)
     ey = np.cross(nz, ex)
     # Even spacing by arc length: invert the cumulative length on a fine grid.
@@ -103,15 +106,16 @@ def follow_path(
     duration: float,
     q0: np.ndarray | None = None,
 ) -> CartesianPlan:
-    """Map tool positions ``points (n, 3)`` (mm, base frame) with constant tool ``rotation
+    """Map tool positions ``points (n, 3)`` (mm, world frame) with constant tool ``rotation
     (3, 3)`` into a joint trajectory lasting ``duration`` s.
 
     Each point is solved near the previous solution (the first near ``q0``). Raises
-    ValueError if some point cannot be reached, naming the first one and why.
+    ValueError if some point cannot be reached, naming the first one and why (``FieldError``
+    naming ``duration`` for a duration <= 0).
     """
     points = np.asarray(points, dtype=float)
     if not duration > 0:
-        raise ValueError("duration: must be positive")
+        raise FieldError("duration", "duration: must be positive")
     n = len(points)
     T = np.repeat(np.eye(4)[None], n, axis=0)
     T[:, :3, :3] = rotation

@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from kinematics.errors import FieldError
+
 from .paths import ALGORITHMS, PathResult, plan_path
 from .scene import Scene
 
@@ -53,18 +55,20 @@ def compare_planners(
 ) -> list[CompareRow]:
     """Plan with every algorithm for ``runs`` seeds; one row per algorithm, in order.
 
-    ``params`` maps an algorithm to its parameters (as for ``plan_path``).
+    ``params`` maps an algorithm to its parameters (as for ``plan_path``). ``FieldError``
+    naming ``runs``, ``algorithms`` or ``params.<algorithm>``.
     """
     if runs < 1:
-        raise ValueError("runs must be at least 1")
-    for a in algorithms:
+        raise FieldError("runs", "runs must be at least 1")
+    for k, a in enumerate(algorithms):
         if a not in ALGORITHMS:
-            raise ValueError(f"algorithms: unknown algorithm {a!r}; known: "
+            raise FieldError(("algorithms", k), f"algorithms: unknown algorithm {a!r}; known: "
                              f"{', '.join(ALGORITHMS)}")
     params = params or {}
-    unknown = set(params) - set(algorithms)
+    unknown = sorted(set(params) - set(algorithms))
     if unknown:
-        raise ValueError(f"params.{sorted(unknown)[0]} names no algorithm being compared")
+        raise FieldError(("params", unknown[0]),
+                         f"params.{unknown[0]} names no algorithm being compared")
     rows = []
     total, done = len(algorithms) * runs, 0
     for a in algorithms:

@@ -9,8 +9,8 @@ flattened to a vector of ``3k`` coordinates inside the scene's bounds. Its cost 
 ``margin' = safety_margin + slack`` is slightly larger than the scene's margin so that a
 path the optimiser thinks is free survives the exact check. The penalty only guides the
 search: ``plan_path`` never trusts it. It verifies the best path with the scene's exact
-segment check, returns an honest failure (no path, ``success=False``, a message naming the
-obstacle) when the path still collides, and otherwise shortens it by shortcutting (greedy,
+segment check, returns an honest failure (no path, ``status`` ``collision``, a message naming
+the obstacle) when the path still collides, and otherwise shortens it by shortcutting (greedy,
 then seeded random shortcuts), each shortcut kept only if the exact check passes.
 
 Lengths in mm, times in s. Paths are ``(n, 3)`` polylines from start to goal.
@@ -27,8 +27,11 @@ from typing import Any
 
 import numpy as np
 
+from kinematics.errors import FieldError
+
 from .optimisers.base import Problem, ProgressFn
 from .scene import Scene
+from .status import PlanStatus
 
 __all__ = [
     "ALGORITHMS",
@@ -126,10 +129,12 @@ class PathEncoding:
 
 @dataclass(frozen=True)
 class PathResult:
-    """A planned path. ``path (n, 3)`` mm from start to goal, empty when ``success`` is
-    False (a path that collides is never returned); ``length`` mm (inf on failure);
+    """A planned path. ``path (n, 3)`` mm from start to goal, empty unless ``status`` is
+    ``ok`` (a path that collides is never returned); ``length`` mm (inf on failure);
     ``min_clearance`` mm (of the returned path, or of the rejected candidate on failure;
-    inf with no obstacles); ``convergence`` = best cost after each iteration."""
+    inf with no obstacles); ``convergence`` = best cost after each iteration. ``status``:
+    ``ok``, ``collision`` (the best path found hits an obstacle), ``no_path`` (the search
+    found none) or ``budget_spent`` (its samples ran out first)."""
 
     path: np.ndarray
     length: float
@@ -138,10 +143,14 @@ class PathResult:
     convergence: np.ndarray
     algorithm: str
     evaluations: int
-    success: bool
+    status: PlanStatus
     message: str
     raw_length: float = math.inf
     extra: dict = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        return self.status is PlanStatus.OK
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (inf and NaN become None)."""
@@ -158,6 +167,7 @@ class PathResult:
             "algorithm": self.algorithm,
             "evaluations": self.evaluations,
             "success": self.success,
+            "status": self.status.value,
             "message": self.message,
             "raw_length": num(self.raw_length),
         }
@@ -220,9 +230,11 @@ def shortcut(scene: Scene, path, rng: np.random.Generator | None = None,
 
 def make_optimiser(algorithm: str, params: dict[str, Any] | None = None):
     """The optimiser dataclass of a metaheuristic with ``params`` overriding its defaults
-    (the paper's). ValueError naming an unknown parameter."""
+    (the paper's). ``FieldError`` naming ``algorithm``, an unknown ``params.<name>``, or
+    ``params`` when the values do not go together."""
     if algorithm not in _OPTIMISERS:
-        raise ValueError(f"algorithm must be one of {', '.join(_OPTIMISERS)}, got {algorithm!r}")
+        raise FieldError("algorithm", f"algorithm must be one of {', '.join(_OPTIMISERS)}, "
+                         f"got {algorithm!r}")
     module, name, preset = _OPTIMISERS[algorithm]
     cls = getattr(importlib.import_module(module), name)
     base = getattr(cls, preset)() if preset else cls()
@@ -230,12 +242,12 @@ def make_optimiser(algorithm: str, params: dict[str, Any] | None = None):
     names = {f.name for f in dataclasses.fields(cls)}
     for key in params:
         if key not in names:
-            raise ValueError(f"params.{key} is not a parameter of {algorithm}; known: "
-                             f"{', '.join(sorted(names | _COMMON_PARAMS))}")
+            raise FieldError(("params", key), f"params.{key} is not a parameter of "
+                             f"{algorithm}; known: {', '.join(sorted(names | _COMMON_PARAMS))}")
     try:
         return dataclasses.replace(base, **params)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"params: {exc}") from None
+        raise FieldError("params", f"params: {exc}") from None
 
 
 def _heartbeat(problem: Problem, progress: ProgressFn, every_s: float = 0.2) -> Problem:
@@ -254,12 +266,12 @@ def _heartbeat(problem: Problem, progress: ProgressFn, every_s: float = 0.2) -> 
     return Problem(f, problem.lower, problem.upper)
 
 
-def _failure(algorithm: str, t0: float, message: str, **kw) -> PathResult:
+def _failure(algorithm: str, t0: float, status: PlanStatus, message: str, **kw) -> PathResult:
     return PathResult(path=np.empty((0, 3)), length=math.inf,
                       min_clearance=kw.pop("min_clearance", math.nan),
                       runtime_s=time.perf_counter() - t0,
                       convergence=kw.pop("convergence", np.empty(0)), algorithm=algorithm,
-                      evaluations=kw.pop("evaluations", 0), success=False, message=message,
+                      evaluations=kw.pop("evaluations", 0), status=status, message=message,
                       **kw)
 
 
@@ -286,12 +298,14 @@ def plan_path(
     dataclass; defaults are paper 000's) and the common ``waypoints`` (k), ``penalty``,
     ``max_evaluations``, ``shortcut`` (default True) and ``random_shortcuts``; for
     ``rrt_star``/``auto`` the planner's own options. ``progress(fraction)`` may raise to
-    stop. Invalid input raises ValueError naming the field; a planner that finds no clear
-    path returns ``success=False`` with a message.
+    stop. Invalid input raises ``FieldError`` naming the field (``start``, ``goal``,
+    ``params.<name>``); a planner that finds no clear path returns a failed ``status`` with
+    a message.
     """
     t0 = time.perf_counter()
     if algorithm not in ALGORITHMS:
-        raise ValueError(f"algorithm must be one of {', '.join(ALGORITHMS)}, got {algorithm!r}")
+        raise FieldError("algorithm", f"algorithm must be one of {', '.join(ALGORITHMS)}, "
+                         f"got {algorithm!r}")
     start = scene.check_endpoint(start, "start")
     goal = scene.check_endpoint(goal, "goal")
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
@@ -299,7 +313,8 @@ def plan_path(
     do_shortcut = bool(params.pop("shortcut", True))
     tries = int(params.pop("random_shortcuts", DEFAULT_RANDOM_SHORTCUTS))
     if tries < 0:
-        raise ValueError("params.random_shortcuts must be non-negative")
+        raise FieldError(("params", "random_shortcuts"),
+                         "params.random_shortcuts must be non-negative")
 
     if algorithm in ("auto", "rrt_star"):
         from . import auto_planner
@@ -307,17 +322,18 @@ def plan_path(
         fn = auto_planner.plan_auto if algorithm == "auto" else auto_planner.plan_rrt_star
         raw = fn(scene, start, goal, rng, params=params, progress=progress)
         history, evaluations, extra = raw.history, raw.evaluations, raw.extra
-        candidate = raw.path
+        candidate, none_found = raw.path, raw.status
     else:
         k = int(params.pop("waypoints", DEFAULT_WAYPOINTS.get(algorithm, 5)))
         if k < 1:
-            raise ValueError("params.waypoints must be at least 1")
+            raise FieldError(("params", "waypoints"), "params.waypoints must be at least 1")
         penalty = float(params.pop("penalty", DEFAULT_PENALTY))
         if not penalty > 0:
-            raise ValueError("params.penalty must be positive")
+            raise FieldError(("params", "penalty"), "params.penalty must be positive")
         max_evals = params.pop("max_evaluations", None)
         if max_evals is not None and int(max_evals) < 1:
-            raise ValueError("params.max_evaluations must be at least 1")
+            raise FieldError(("params", "max_evaluations"),
+                             "params.max_evaluations must be at least 1")
         opt = make_optimiser(algorithm, params)
         if algorithm == "aca":
             res = opt.plan_layers(scene, start, goal, rng, penalty=penalty,
@@ -332,14 +348,15 @@ def plan_path(
             candidate = enc.decode(res.x)[0]
         history, evaluations = res.history, res.evaluations
         extra = {"optimiser": res.message, "message": res.extra.get("message", "no path found")}
+        none_found = PlanStatus.NO_PATH  # no ant of the ACA reached the goal
     if candidate is None:
-        return _failure(algorithm, t0, extra.get("message", "no path found"),
+        return _failure(algorithm, t0, none_found, extra.get("message", "no path found"),
                         convergence=history, evaluations=evaluations)
     candidate = np.asarray(candidate, dtype=float)
     raw_length = path_length(candidate)
     clearance = scene.path_clearance(candidate)
     if not scene.path_is_clear(candidate):
-        return _failure(algorithm, t0,
+        return _failure(algorithm, t0, PlanStatus.COLLISION,
                         f"{algorithm} found no clear path: its best path's "
                         f"{_blocking(scene, candidate)}", min_clearance=clearance,
                         convergence=history, evaluations=evaluations, raw_length=raw_length)
@@ -347,7 +364,7 @@ def plan_path(
     return PathResult(
         path=path, length=path_length(path), min_clearance=scene.path_clearance(path),
         runtime_s=time.perf_counter() - t0, convergence=np.asarray(history, dtype=float),
-        algorithm=algorithm, evaluations=int(evaluations), success=True,
+        algorithm=algorithm, evaluations=int(evaluations), status=PlanStatus.OK,
         message="clear path found" + (", shortened by shortcutting" if do_shortcut else ""),
         raw_length=raw_length, extra=extra,
     )

@@ -19,27 +19,30 @@ from math import comb
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
+from kinematics.errors import FieldError
+
 from .trajectory import Trajectory
 
 __all__ = ["quintic_segments", "sextic_via", "smooth_spline", "check_waypoints"]
 
 
 def check_waypoints(waypoints, durations) -> tuple[np.ndarray, np.ndarray]:
-    """Validate waypoints ``(n, dof)`` and segment durations ``(n-1,)``; ValueError naming the
-    field at fault."""
+    """Validate waypoints ``(n, dof)`` and segment durations ``(n-1,)``; ``FieldError`` naming
+    the field at fault (``waypoints`` or ``durations``)."""
     q = np.asarray(waypoints, dtype=float)
     if q.ndim != 2 or q.shape[0] < 2:
-        raise ValueError("waypoints: need at least 2 waypoints, each a list of joint values")
+        raise FieldError("waypoints",
+                         "waypoints: need at least 2 waypoints, each a list of joint values")
     if not np.all(np.isfinite(q)):
-        raise ValueError("waypoints: values must be finite")
+        raise FieldError("waypoints", "waypoints: values must be finite")
     h = np.asarray(durations, dtype=float).reshape(-1)
     if h.shape[0] != q.shape[0] - 1:
-        raise ValueError(
-            f"durations: need one per segment ({q.shape[0] - 1} for {q.shape[0]} waypoints), "
-            f"got {h.shape[0]}"
+        raise FieldError(
+            "durations", f"durations: need one per segment ({q.shape[0] - 1} for "
+            f"{q.shape[0]} waypoints), got {h.shape[0]}"
         )
     if not np.all(np.isfinite(h)) or np.any(h <= 0):
-        raise ValueError("durations: every duration must be positive and finite")
+        raise FieldError("durations", "durations: every duration must be positive and finite")
     return q, h
 
 
@@ -61,9 +64,10 @@ def quintic_segments(
     a = np.zeros_like(q) if accelerations is None else np.asarray(accelerations, dtype=float)
     for name, arr in (("velocities", v), ("accelerations", a)):
         if arr.shape != q.shape:
-            raise ValueError(f"{name}: expected shape {list(q.shape)}, got {list(arr.shape)}")
+            raise FieldError(name, f"{name}: expected shape {list(q.shape)}, got "
+                             f"{list(arr.shape)}")
         if not np.all(np.isfinite(arr)):
-            raise ValueError(f"{name}: values must be finite")
+            raise FieldError(name, f"{name}: values must be finite")
     T = h[:, None]
     q0, q1, v0, v1, a0, a1 = q[:-1], q[1:], v[:-1], v[1:], a[:-1], a[1:]
     c = np.zeros((n - 1, 6, dof))
@@ -84,7 +88,8 @@ def sextic_via(waypoints, durations) -> Trajectory:
     continuity report can show the join."""
     q, h = check_waypoints(waypoints, durations)
     if q.shape[0] != 3:
-        raise ValueError("waypoints: a sextic goes through exactly 3 waypoints (A, B, C)")
+        raise FieldError("waypoints",
+                         "waypoints: a sextic goes through exactly 3 waypoints (A, B, C)")
     tB, tC = h[0], h[0] + h[1]
     powers = np.arange(7)
     A = np.zeros((7, 7))

@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from kinematics.errors import FieldError, loc_from_path
+
 __all__ = [
     "Sphere",
     "Box",
@@ -41,18 +43,24 @@ __all__ = [
 MAX_COORDINATE = 1e9
 
 
+def _bad(name: str, message: str) -> FieldError:
+    """``FieldError`` at the field path ``name`` (``obstacles[2].radius``), its message
+    starting with that path."""
+    return FieldError(loc_from_path(name), f"{name} {message}")
+
+
 def _vec3(value: Any, name: str) -> np.ndarray:
-    """``value`` as a finite float ``(3,)``; ValueError naming ``name`` otherwise."""
+    """``value`` as a finite float ``(3,)``; ``FieldError`` naming ``name`` otherwise."""
     try:
         v = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be 3 numbers [x, y, z]") from None
+        raise _bad(name, "must be 3 numbers [x, y, z]") from None
     if v.shape != (3,):
-        raise ValueError(f"{name} must be 3 numbers [x, y, z], got shape {list(v.shape)}")
+        raise _bad(name, f"must be 3 numbers [x, y, z], got shape {list(v.shape)}")
     if not np.all(np.isfinite(v)):
-        raise ValueError(f"{name} has a NaN or infinite entry")
+        raise _bad(name, "has a NaN or infinite entry")
     if np.any(np.abs(v) > MAX_COORDINATE):
-        raise ValueError(f"{name} has a coordinate beyond {MAX_COORDINATE:.0e} mm")
+        raise _bad(name, f"has a coordinate beyond {MAX_COORDINATE:.0e} mm")
     v.setflags(write=False)
     return v
 
@@ -61,11 +69,11 @@ def _positive(value: Any, name: str, allow_zero: bool = False) -> float:
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number") from None
+        raise _bad(name, "must be a number") from None
     if not math.isfinite(x):
-        raise ValueError(f"{name} must be finite, got {x}")
+        raise _bad(name, f"must be finite, got {x}")
     if x < 0 or (x == 0 and not allow_zero):
-        raise ValueError(f"{name} must be {'non-negative' if allow_zero else 'positive'}")
+        raise _bad(name, f"must be {'non-negative' if allow_zero else 'positive'}")
     return x
 
 
@@ -111,14 +119,20 @@ class Capsule:
 Obstacle = Sphere | Box | Capsule
 
 
-def obstacle_from_dict(data: Any, name: str) -> Obstacle:
+def obstacle_from_dict(data: Any, name: str = "") -> Obstacle:
     """An obstacle from JSON: ``{"center", "radius"}`` (sphere; ``"type"`` optional),
     ``{"type": "box", "lower", "upper"}`` or ``{"type": "box", "center", "size"}``,
-    ``{"type": "capsule", "a", "b", "radius"}``. ValueError naming the field at fault."""
+    ``{"type": "capsule", "a", "b", "radius"}``. ``FieldError`` naming the field at fault,
+    below ``name`` (the obstacle's own path, e.g. ``obstacles[2]``; empty: its fields
+    alone, ``radius``)."""
+
+    def field_name(key: str) -> str:
+        return f"{name}.{key}" if name else key
+
     if isinstance(data, Sphere | Box | Capsule):
         data = data.to_dict()
     if not isinstance(data, dict):
-        raise ValueError(f"{name} must be an object")
+        raise _bad(name or "obstacle", "must be an object")
     kind = data.get("type")
     if kind is None:  # inferred from the fields: radius (and a) first, then box fields
         kind = ("capsule" if "a" in data else "sphere") if "radius" in data else \
@@ -126,34 +140,35 @@ def obstacle_from_dict(data: Any, name: str) -> Obstacle:
     allowed = {"sphere": {"center", "radius"}, "box": {"lower", "upper", "center", "size"},
                "capsule": {"a", "b", "radius"}}
     if kind not in allowed:
-        raise ValueError(f"{name}.type must be 'sphere', 'box' or 'capsule', got {kind!r}")
+        raise _bad(field_name("type"), f"must be 'sphere', 'box' or 'capsule', got {kind!r}")
     extra = set(data) - allowed[kind] - {"type"}
     if extra:
-        raise ValueError(f"{name}.{sorted(extra)[0]} is not a field of a {kind}")
+        raise _bad(field_name(sorted(extra)[0]), f"is not a field of a {kind}")
 
     def need(key: str) -> Any:
         if key not in data:
-            raise ValueError(f"{name}.{key} is required for a {kind}")
+            raise _bad(field_name(key), f"is required for a {kind}")
         return data[key]
 
     if kind == "sphere":
-        return Sphere(_vec3(need("center"), f"{name}.center"),
-                      _positive(need("radius"), f"{name}.radius"))
+        return Sphere(_vec3(need("center"), field_name("center")),
+                      _positive(need("radius"), field_name("radius")))
     if kind == "capsule":
-        return Capsule(_vec3(need("a"), f"{name}.a"), _vec3(need("b"), f"{name}.b"),
-                       _positive(need("radius"), f"{name}.radius"))
+        return Capsule(_vec3(need("a"), field_name("a")), _vec3(need("b"), field_name("b")),
+                       _positive(need("radius"), field_name("radius")))
     if "size" in data or "center" in data:
-        center = _vec3(need("center"), f"{name}.center")
-        size = _vec3(need("size"), f"{name}.size")
+        center = _vec3(need("center"), field_name("center"))
+        size = _vec3(need("size"), field_name("size"))
         if np.any(size <= 0):
-            raise ValueError(f"{name}.size must be positive on every axis")
+            raise _bad(field_name("size"), "must be positive on every axis")
         lower, upper = center - size / 2, center + size / 2
     else:
-        lower = _vec3(need("lower"), f"{name}.lower")
-        upper = _vec3(need("upper"), f"{name}.upper")
+        lower = _vec3(need("lower"), field_name("lower"))
+        upper = _vec3(need("upper"), field_name("upper"))
     if np.any(upper <= lower):
         axis = "xyz"[int(np.argmax(upper <= lower))]
-        raise ValueError(f"{name}.upper must exceed {name}.lower on every axis ({axis} does not)")
+        raise _bad(field_name("upper"), f"must exceed {field_name('lower')} on every axis "
+                   f"({axis} does not)")
     lower, upper = np.array(lower), np.array(upper)
     lower.setflags(write=False)
     upper.setflags(write=False)
@@ -277,7 +292,8 @@ class Scene:
     """Bounds ``lower (3,) < upper (3,)`` mm, convex obstacles, and a safety margin (mm).
 
     Build with ``Scene.create`` (validates, accepts JSON-like obstacles) or
-    ``Scene.from_dict``; ValueError messages name the field at fault.
+    ``Scene.from_dict``; a ``FieldError`` names the field at fault within the scene's JSON
+    (``("obstacles", 2, "radius")``).
     """
 
     lower: np.ndarray
@@ -291,7 +307,7 @@ class Scene:
         upper = _vec3(self.upper, "bounds[1]")
         if np.any(upper <= lower):
             axis = "xyz"[int(np.argmax(upper <= lower))]
-            raise ValueError(f"bounds[1] must exceed bounds[0] on every axis ({axis} does not)")
+            raise _bad("bounds[1]", f"must exceed bounds[0] on every axis ({axis} does not)")
         object.__setattr__(self, "lower", lower)
         object.__setattr__(self, "upper", upper)
         obs = tuple(obstacle_from_dict(o, f"obstacles[{i}]")
@@ -321,19 +337,21 @@ class Scene:
         try:
             b = np.asarray(bounds, dtype=float)
         except (TypeError, ValueError):
-            raise ValueError("bounds must be [[x, y, z], [x, y, z]]") from None
+            raise _bad("bounds", "must be [[x, y, z], [x, y, z]]") from None
         if b.shape != (2, 3):
-            raise ValueError(f"bounds must be [[x, y, z], [x, y, z]], got shape {list(b.shape)}")
+            raise _bad("bounds", f"must be [[x, y, z], [x, y, z]], got shape {list(b.shape)}")
         return cls(b[0], b[1], tuple(obstacles), safety_margin)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Scene:
         """Scene from the API's JSON ``{"bounds", "obstacles", "safety_margin"?}``."""
-        if not isinstance(data, dict) or "bounds" not in data:
-            raise ValueError("scene must be an object with 'bounds'")
+        if not isinstance(data, dict):
+            raise FieldError((), "scene must be an object with 'bounds'")
+        if "bounds" not in data:
+            raise FieldError("bounds", "scene must be an object with 'bounds'")
         obstacles = data.get("obstacles", [])
         if not isinstance(obstacles, list | tuple):
-            raise ValueError("obstacles must be a list")
+            raise _bad("obstacles", "must be a list")
         return cls.create(data["bounds"], obstacles, data.get("safety_margin", 0.0))
 
     def to_dict(self) -> dict[str, Any]:
@@ -428,18 +446,19 @@ class Scene:
 
     def check_endpoint(self, point, name: str) -> np.ndarray:
         """Validate a start or goal ``(3,)``: finite, in bounds, clear of every obstacle by
-        the safety margin. ValueError naming ``name`` and the obstacle otherwise."""
+        the safety margin. ``FieldError`` at ``name`` (a field path) naming the obstacle
+        otherwise."""
         p = _vec3(point, name)
         if not self.in_bounds(p)[0]:
-            raise ValueError(f"{name} is outside bounds")
+            raise _bad(name, "is outside bounds")
         if self.obstacles:
             c = self.point_clearance(p)[0]
             k = int(np.argmin(c))
             if c[k] < 0:
-                raise ValueError(f"{name} is inside obstacles[{k}]")
+                raise _bad(name, f"is inside obstacles[{k}]")
             if c[k] < self.safety_margin:
-                raise ValueError(f"{name} is within safety_margin ({self.safety_margin} mm) of "
-                                 f"obstacles[{k}] ({c[k]:.3f} mm away)")
+                raise _bad(name, f"is within safety_margin ({self.safety_margin} mm) of "
+                           f"obstacles[{k}] ({c[k]:.3f} mm away)")
         return p
 
     # ---- surfaces (for visibility graphs) ---------------------------------------------------

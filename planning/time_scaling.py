@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from kinematics.errors import FieldError
+
 from .trajectory import Limits, Trajectory
 
 __all__ = ["fit_to_limits"]
@@ -21,13 +23,15 @@ def fit_to_limits(traj: Trajectory, limits: Limits, *, per_segment: bool) -> Tra
     ``per_segment=True`` scales each segment on its own (right for trajectories that stop at
     every waypoint: the joins stay at rest); otherwise one factor stretches the whole
     trajectory, which keeps smooth trajectories smooth. Factors below 1 shorten a trajectory
-    that was slower than it needed to be. Raises ValueError when no rate limit is finite.
+    that was slower than it needed to be. Raises ``FieldError`` naming ``limits`` when no
+    rate limit is finite.
     """
     if not any(
         lim is not None and np.any(np.isfinite(np.asarray(lim, dtype=float)))
         for lim in (limits.velocity, limits.acceleration, limits.jerk)
     ):
-        raise ValueError("limits: time scaling needs a finite velocity, acceleration or jerk limit")
+        raise FieldError("limits", "limits: time scaling needs a finite velocity, acceleration "
+                         "or jerk limit")
     if per_segment:
         segments = [np.array([k]) for k in range(len(traj.breaks) - 1)]
         factors = traj.stretch_factor(limits, segments)

@@ -1,6 +1,6 @@
 """Tool-path tracking of a redundant arm by a PI resolved-rate law (paper 003, eqs. 1-13, 24).
 
-At every control step ``k`` (period ``dt``) the tool position error ``e = x_d - x`` (mm, base
+At every control step ``k`` (period ``dt``) the tool position error ``e = x_d - x`` (mm, world
 frame) feeds the PI law of eq. 1, ``delta = Kp e + ki * integral(e)`` (mm/s), and the joint
 rates come from the weighted, damped inverse of the three position rows ``J (3, dof)`` of the
 Jacobian (eq. 13)::

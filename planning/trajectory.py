@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import BSpline, PPoly
 
+from kinematics.errors import FieldError
+
 __all__ = [
     "Trajectory",
     "Samples",
@@ -127,11 +129,11 @@ class Trajectory:
     def sample(self, dt: float) -> Samples:
         """Samples every ``dt`` s from start to end (the end always included)."""
         if not dt > 0:
-            raise ValueError(f"dt must be positive, got {dt}")
+            raise FieldError("dt", f"dt must be positive, got {dt}")
         n = int(math.floor(self.duration / dt + 1e-9)) + 1
         if n + 1 > MAX_SAMPLES:
-            raise ValueError(
-                f"dt = {dt} s over {self.duration:.6g} s gives {n + 1} samples; at most "
+            raise FieldError(
+                "dt", f"dt = {dt} s over {self.duration:.6g} s gives {n + 1} samples; at most "
                 f"{MAX_SAMPLES}"
             )
         t = self.breaks[0] + dt * np.arange(n)

@@ -1,46 +1,52 @@
 """A finished job's result turned into what the viewer draws: a ``Plan``.
 
-Pure data, no viser: every kind the viewer can show maps its params and result (the JSON of
-``GET /jobs/{id}/result``, shapes as in docs/API.md) to point clouds, polylines, obstacles and
-arm motions in mm. ``plan_from_result`` raises ``ValueError`` naming the key at fault when a
-result does not have the documented shape.
+Pure data, no viser. Each job kind the viewer can show has a drawer here, registered with
+``drawer(kind)``: the name must be a registered job kind (``app.jobs.catalog``) and may be
+registered once; both are checked when this module is imported. A kind is drawable exactly
+when it has a drawer (``drawable``).
 
-Shapes read, per kind (keys marked ? are optional):
+``plan_from_result`` parses the job's params and result with the kind's own models
+(``Params`` and ``Result``, the schemas ``GET /jobs/kinds`` publishes) and hands them, typed,
+to the drawer; a result (or params) that does not match is a ``ValueError`` naming the key at
+fault (``result.q.0: ...``), as is one the robot cannot follow (a joint vector of the wrong
+length, a hole index out of range).
 
-* ``workspace``: result ``points`` (and ``min``, ``max``, ``radial``, ``vertical``,
-  ``volume``, ``samples`` for the summary); the robot is ``params.robot``.
-* ``path``: params ``scene {"bounds", "obstacles"}``, ``start``?, ``goal``?, ``robot``?;
-  result ``path [[x, y, z], ...]``, ``joint_path``? ``[[q...], ...]`` or ``trajectory``?
-  ``{"t", "q"}`` (the arm moves along it when the params name a robot).
-* ``sequence``: params ``holes``, ``start``?, ``robot``?; result ``order`` and, if present,
-  ``joint_path`` / ``trajectory`` as for ``path``.
-* ``multiarm``: params ``rig``, ``holes {arm: [[x, y, z], ...]}``; result per-arm joint
-  trajectories under ``trajectories`` or ``arms``: ``{arm: {"t"?, "q", "order"?} | [[q...]]}``
-  (a shared ``t`` may sit at the top level), ``min_distance``?, ``collisions``?.
-* ``tracking``: params ``robot``; result ``q [[...]]`` (the arm's actual motion), ``errors``?,
-  ``t``? or ``dt``?, and the desired tool path under ``x_desired``? or ``desired``? (without
-  it only the actual tool path is drawn, and the summary says so).
+What each drawer reads, in mm, rad, s:
 
-Timing: a joint path without times is played at ``DEFAULT_SECONDS`` in total; tracking samples
-without ``t`` are ``dt`` apart (result, then params, else ``DEFAULT_TRACKING_DT``).
+* ``workspace``: result ``points`` (a cloud coloured by height), with ``samples``, ``min``,
+  ``max``, ``radial``, ``vertical``, ``volume`` for the summary; the robot is ``robot``.
+* ``path``: params ``scene`` (obstacles and bounds), ``start``, ``goal``, ``robot``; result
+  ``path``, ``length``, ``min_clearance``, ``runtime_s``, ``success``, ``message`` and, for a
+  robot, ``trajectory {t, q}`` (the arm moves along it; without a trajectory, along
+  ``joint_path`` in ``DEFAULT_SECONDS``).
+* ``sequence``: params ``holes``, ``start``; result ``order`` (the drilling order drawn as a
+  line through the holes), ``length``, ``runtime_s``. No robot moves.
+* ``multiarm``: params ``rig``, ``planner``; result ``t`` and per arm ``arms[arm].holes`` (in
+  drilling order) and ``arms[arm].q`` (the arm's motion), ``min_distance``, ``collisions``.
+* ``tracking``: params ``robot``; result ``t``, ``q`` (the arm's motion), ``x_desired`` (the
+  desired tool path), ``mean_error``, ``max_error``.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel, ValidationError
 
+from app.jobs.catalog import KINDS
+from app.jobs.drilling_kinds import MultiarmParams, MultiarmResult, SequenceParams, SequenceResult
+from app.jobs.kinds import WorkspaceParams, WorkspaceResult, error_text
+from app.jobs.path_kinds import PathParams, PathResult, SceneIn
+from app.jobs.tracking_kinds import TrackingParams, TrackingResult
 from kinematics.fk import fk
 from kinematics.model import RobotModel
 
 __all__ = [
-    "DRAWABLE_KINDS",
+    "DRAWERS",
     "DEFAULT_SECONDS",
-    "DEFAULT_TRACKING_DT",
     "Motion",
     "Cloud",
     "Polyline",
@@ -48,15 +54,14 @@ __all__ = [
     "Box",
     "Capsule",
     "Plan",
+    "DrawContext",
+    "drawer",
+    "drawable",
     "plan_from_result",
 ]
 
-DRAWABLE_KINDS = ("workspace", "path", "sequence", "multiarm", "tracking")
 #: Playback length (s) of a joint path that carries no times.
 DEFAULT_SECONDS = 5.0
-#: Sample spacing (s) of a tracking run whose result carries neither ``t`` nor ``dt``
-#: (``planning.tracking.TrackingConfig``'s default control period).
-DEFAULT_TRACKING_DT = 0.1
 
 PATH_COLOR = (20, 160, 60)
 START_COLOR = (30, 120, 230)
@@ -163,122 +168,111 @@ class Plan:
         return [item.name for group in groups for item in group]
 
 
-# ---- reading the result -------------------------------------------------------------------
-def _points(value: Any, key: str, min_rows: int = 1) -> np.ndarray:
-    """``value`` as finite ``(N, 3)`` floats; ValueError naming ``key`` otherwise."""
-    try:
-        p = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{key}: expected a list of [x, y, z] points") from None
-    if p.size == 0 and min_rows == 0:
-        return p.reshape(0, 3)
-    if p.ndim != 2 or p.shape[1] != 3:
-        raise ValueError(f"{key}: expected a list of [x, y, z] points, got shape "
-                         f"{list(p.shape)}")
-    if len(p) < min_rows:
-        raise ValueError(f"{key}: needs at least {min_rows} points, got {len(p)}")
-    if not np.all(np.isfinite(p)):
-        raise ValueError(f"{key}: has a NaN or infinite entry")
-    return p
+# ---- drawers ------------------------------------------------------------------------------
+ModelLookup = Callable[[str], RobotModel]
 
 
-def _joints(value: Any, key: str, model: RobotModel | None) -> np.ndarray:
-    """``value`` as finite ``(S, dof)``; ValueError naming ``key`` otherwise."""
-    try:
-        q = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{key}: expected a list of joint vectors") from None
-    if q.ndim != 2 or len(q) == 0 or (model is not None and q.shape[1] != model.dof):
-        want = f"(S, {model.dof})" if model is not None else "(S, dof)"
-        raise ValueError(f"{key}: expected shape {want}, got {list(q.shape)}")
-    if not np.all(np.isfinite(q)):
-        raise ValueError(f"{key}: has a NaN or infinite entry")
-    return q
+@dataclass(frozen=True)
+class DrawContext:
+    """What a drawer may look up: the job id, robot models by id (``ValueError`` naming
+    ``params.robot`` if unknown) and rigs by id (``kinematics.rigs.Rig``)."""
+
+    job: str
+    models: ModelLookup
+    rigs: Mapping[str, Any]
+
+
+Drawer = Callable[[Any, Any, DrawContext], "Plan"]
+
+#: The drawer of each drawable job kind.
+DRAWERS: dict[str, Drawer] = {}
+
+
+def drawer(kind: str) -> Callable[[Drawer], Drawer]:
+    """Register the decorated function as the drawer of job kind ``kind``: it gets the
+    job's params and result as the kind's models and a ``DrawContext``, and returns the
+    ``Plan``. ValueError (at import) if ``kind`` is not a job kind or has a drawer already."""
+
+    def add(fn: Drawer) -> Drawer:
+        if kind not in KINDS:
+            raise ValueError(f"drawer {fn.__name__}: {kind!r} is not a job kind (known: "
+                             f"{', '.join(sorted(KINDS))})")
+        if kind in DRAWERS:
+            raise ValueError(f"job kind {kind!r} has a drawer already "
+                             f"({DRAWERS[kind].__name__})")
+        DRAWERS[kind] = fn
+        return fn
+
+    return add
+
+
+def drawable(kind: str) -> bool:
+    """Whether the viewer can draw jobs of ``kind``."""
+    return kind in DRAWERS
+
+
+# ---- checks the models cannot make --------------------------------------------------------
+def _points(value: Any) -> np.ndarray:
+    """``value`` (a typed list of [x, y, z]) as ``(N, 3)`` floats."""
+    return np.asarray(value, dtype=float).reshape(-1, 3)
+
+
+def _joints(value: Any, key: str, model: RobotModel) -> np.ndarray:
+    """``value`` as ``(S, dof)`` of ``model``; ValueError naming ``key`` otherwise."""
+    rows = list(value)
+    if not rows or any(len(row) != model.dof for row in rows):
+        got = sorted({len(row) for row in rows})
+        raise ValueError(f"{key}: expected {model.dof} joint values per row for robot "
+                         f"'{model.id}', got {got or 'no rows'}")
+    return np.asarray(rows, dtype=float)
 
 
 def _times(value: Any, key: str, n: int) -> np.ndarray:
     t = np.asarray(value, dtype=float)
-    if t.shape != (n,) or not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0):
-        raise ValueError(f"{key}: expected {n} non-decreasing times")
+    if t.shape != (n,) or np.any(np.diff(t) < 0):
+        raise ValueError(f"{key}: expected {n} non-decreasing times, got {len(t)}")
     return t - t[0]
 
 
-def _uniform(n: int, seconds: float) -> np.ndarray:
-    return np.linspace(0.0, seconds, n) if n > 1 else np.zeros(1)
-
-
-def _motion(data: Any, key: str, model: RobotModel | None, *, t: Any = None,
-            dt: float | None = None) -> Motion:
-    """A motion from ``[[q...]]`` or ``{"t"?, "q"}``; without times: ``dt`` apart, else
-    ``DEFAULT_SECONDS`` in total."""
-    if isinstance(data, Mapping):
-        if "q" not in data:
-            raise ValueError(f"{key}.q: missing")
-        t = data.get("t", t)
-        q = _joints(data["q"], f"{key}.q", model)
-        tkey = f"{key}.t"
-    else:
-        q = _joints(data, key, model)
-        tkey = "t"
+def _motion(q: Any, key: str, model: RobotModel, t: Any = None, tkey: str = "t") -> Motion:
+    """A motion through the rows of ``q``, at times ``t`` (from 0), else uniformly over
+    ``DEFAULT_SECONDS``."""
+    rows = _joints(q, key, model)
     if t is not None:
-        times = _times(t, tkey, len(q))
-    elif dt is not None:
-        times = np.arange(len(q)) * dt
+        times = _times(t, tkey, len(rows))
     else:
-        times = _uniform(len(q), DEFAULT_SECONDS)
-    return Motion(times, q)
+        times = np.linspace(0.0, DEFAULT_SECONDS, len(rows)) if len(rows) > 1 else np.zeros(1)
+    return Motion(times, rows)
 
 
-def _fmt(v: Any, unit: str = "mm") -> str:
-    try:
-        return f"{float(v):,.0f} {unit}"
-    except (TypeError, ValueError):
-        return "?"
+def _fmt(v: float | None, unit: str = "mm") -> str:
+    return "?" if v is None else f"{float(v):,.0f} {unit}"
 
 
-def _xyz(v: Any) -> str:
-    try:
-        return "[" + ", ".join(f"{float(x):,.0f}" for x in v) + "]"
-    except (TypeError, ValueError):
-        return "?"
-
-
-ModelLookup = Callable[[str], RobotModel]
+def _hole_size(holes: np.ndarray) -> float:
+    span = float(np.linalg.norm(np.ptp(holes, axis=0))) if len(holes) > 1 else 0.0
+    return max(span / 150.0, 5.0)
 
 
 # ---- per kind -----------------------------------------------------------------------------
-def _workspace(job: str, params: dict, result: dict, models: ModelLookup) -> Plan:
-    points = _points(result.get("points"), "points", min_rows=0)
-    robot = params.get("robot") or result.get("robot")
-    lines = [f"**Workspace** of `{robot}` (job `{job}`): {len(points):,} of "
-             f"{int(result.get('samples', len(points))):,} samples shown"]
-    if "min" in result and "max" in result:
-        lo, hi = result["min"], result["max"]
-        for k, axis in enumerate("xyz"):
-            lines.append(f"- {axis}: {_fmt(lo[k])} … {_fmt(hi[k])}")
-    if "radial" in result:
-        lines.append(f"- radial: {_fmt(result['radial'][0])} … {_fmt(result['radial'][1])}")
-    if "vertical" in result:
-        lines.append(f"- vertical: {_fmt(result['vertical'][0])} … "
-                     f"{_fmt(result['vertical'][1])}")
-    if "volume" in result:
-        lines.append(f"- volume ≈ {float(result['volume']) * 1e-9:.3f} m³")
-    return Plan(job, "workspace", robot=robot, clouds=(Cloud("points", points),),
+@drawer("workspace")
+def _workspace(params: WorkspaceParams, result: WorkspaceResult, ctx: DrawContext) -> Plan:
+    points = _points(result.points)
+    lines = [f"**Workspace** of `{result.robot}` (job `{ctx.job}`): {len(points):,} of "
+             f"{result.samples:,} samples shown"]
+    for k, axis in enumerate("xyz"):
+        lines.append(f"- {axis}: {_fmt(result.min[k])} … {_fmt(result.max[k])}")
+    lines.append(f"- radial: {_fmt(result.radial[0])} … {_fmt(result.radial[1])}")
+    lines.append(f"- vertical: {_fmt(result.vertical[0])} … {_fmt(result.vertical[1])}")
+    lines.append(f"- volume ≈ {result.volume * 1e-9:.3f} m³")
+    return Plan(ctx.job, "workspace", robot=result.robot, clouds=(Cloud("points", points),),
                 summary="\n".join(lines))
 
 
-def _scene_items(scene: Any) -> tuple[list[Spheres], list[Box], list[Capsule]]:
-    """Obstacles and bounds of a path-planning scene, parsed by ``planning.scene``."""
-    from planning.scene import Scene
-
-    def present(d: Any) -> Any:  # validated params carry every optional field as null
-        return {k: v for k, v in d.items() if v is not None} if isinstance(d, Mapping) else d
-
-    scene = present(scene)
-    if isinstance(scene, dict) and isinstance(scene.get("obstacles"), list):
-        scene["obstacles"] = [present(o) for o in scene["obstacles"]]
+def _scene_items(scene: SceneIn) -> tuple[list[Spheres], list[Box], list[Capsule]]:
+    """Obstacles and bounds of a path-planning scene."""
     try:
-        parsed = Scene.from_dict(scene)
+        parsed = scene.to_scene()
     except ValueError as exc:
         raise ValueError(f"params.scene: {exc}") from None
     spheres = [o for o in parsed.obstacles if o.kind == "sphere"]
@@ -294,162 +288,135 @@ def _scene_items(scene: Any) -> tuple[list[Spheres], list[Box], list[Capsule]]:
     return out_s, boxes, caps
 
 
-def _arm_motion(params: dict, result: dict, models: ModelLookup) -> dict[str, Motion]:
-    """The robot's motion of a path or sequence result, if it has one and names a robot."""
-    robot = params.get("robot")
-    def has(k: str) -> bool:
-        data = result.get(k)
-        rows = data.get("q") if isinstance(data, Mapping) else data
-        return rows is not None and len(rows) > 0
-
-    key = next((k for k in ("trajectory", "joint_path") if has(k)), None)
-    if robot is None or key is None:
-        return {}
-    return {"": _motion(result[key], key, models(robot))}
-
-
-def _path(job: str, params: dict, result: dict, models: ModelLookup) -> Plan:
-    path = _points(result.get("path") or [], "path", min_rows=0)
-    spheres, boxes, caps = ([], [], []) if "scene" not in params else \
-        _scene_items(params["scene"])
-    ends = [(k, c) for k, c in (("start", START_COLOR), ("goal", GOAL_COLOR))
-            if params.get(k) is not None]
-    extent = np.vstack([path] + [_points([params[k]], f"params.{k}") for k, _ in ends]
-                       + [np.zeros((1, 3))])
+@drawer("path")
+def _path(params: PathParams, result: PathResult, ctx: DrawContext) -> Plan:
+    path = _points(result.path)
+    spheres, boxes, caps = _scene_items(params.scene)
+    ends = [("start", params.start, START_COLOR), ("goal", params.goal, GOAL_COLOR)]
+    extent = np.vstack([path, [params.start], [params.goal]])
     size = 0.01 * float(np.linalg.norm(np.ptp(extent, axis=0))) + 1.0
-    for k, color in ends:
-        spheres.append(Spheres(k, _points([params[k]], f"params.{k}"), np.array([size]), color))
-    motions = _arm_motion(params, result, models)
-    lines = [f"**Path** (job `{job}`, {params.get('algorithm', '?')}): {len(path)} points",
-             f"- length: {_fmt(result.get('length'))}",
-             f"- min clearance: {_fmt(result.get('min_clearance'))}"]
-    if "runtime_s" in result:
-        lines.append(f"- runtime: {float(result['runtime_s']):.2f} s")
-    if result.get("success") is False:
-        lines.append(f"- **no clear path**: {result.get('message', '')}")
+    for name, point, color in ends:
+        spheres.append(Spheres(name, _points([point]), np.array([size]),
+                               color))
+    motions: dict[str, Motion] = {}
+    if params.robot is not None:
+        model = ctx.models(params.robot)
+        if result.trajectory is not None and result.trajectory.q:
+            motions[""] = _motion(result.trajectory.q, "result.trajectory.q", model,
+                                  result.trajectory.t, "result.trajectory.t")
+        elif result.joint_path:
+            motions[""] = _motion(result.joint_path, "result.joint_path", model)
+    lines = [f"**Path** (job `{ctx.job}`, {params.algorithm}): {len(path)} points",
+             f"- length: {_fmt(result.length)}",
+             f"- min clearance: {_fmt(result.min_clearance)}",
+             f"- runtime: {result.runtime_s:.2f} s"]
+    if not result.success:
+        lines.append(f"- **no clear path**: {result.message}")
     lines.append("- arm: moves along the joint path" if motions else
                  "- arm: no joint path in the result")
     polylines = (Polyline("path", path, PATH_COLOR),) if len(path) else ()
-    return Plan(job, "path", robot=params.get("robot"), spheres=tuple(spheres),
+    return Plan(ctx.job, "path", robot=params.robot, spheres=tuple(spheres),
                 boxes=tuple(boxes), capsules=tuple(caps), polylines=polylines, motions=motions,
                 summary="\n".join(lines))
 
 
-def _ordered(holes: np.ndarray, order: Any, key: str, start: Any = None) -> np.ndarray:
-    try:
-        idx = np.asarray(order, dtype=int)
-    except (TypeError, ValueError):
-        raise ValueError(f"{key}: expected a list of hole indices") from None
-    if idx.ndim != 1 or np.any(idx < 0) or np.any(idx >= len(holes)):
-        raise ValueError(f"{key}: indices must lie in 0..{len(holes) - 1}")
-    pts = holes[idx]
-    if start is not None:
-        pts = np.vstack([_points([start], "params.start"), pts])
-    return pts
+@drawer("sequence")
+def _sequence(params: SequenceParams, result: SequenceResult, ctx: DrawContext) -> Plan:
+    holes = _points(params.holes)
+    order = np.asarray(result.order, dtype=int)
+    if len(order) and (order.min() < 0 or order.max() >= len(holes)):
+        raise ValueError(f"result.order: hole indices must lie in 0..{len(holes) - 1}")
+    line = holes[order]
+    if params.start is not None:
+        line = np.vstack([[params.start], line])
+    lines = [f"**Drilling sequence** (job `{ctx.job}`, {result.algorithm}): "
+             f"{len(holes)} holes", f"- length: {_fmt(result.length)}",
+             f"- runtime: {result.runtime_s:.2f} s"]
+    return Plan(ctx.job, "sequence", spheres=(
+        Spheres("holes", holes, np.full(len(holes), _hole_size(holes)), HOLE_COLOR),),
+        polylines=(Polyline("order", line, PATH_COLOR),), summary="\n".join(lines))
 
 
-def _hole_size(holes: np.ndarray) -> float:
-    span = float(np.linalg.norm(np.ptp(holes, axis=0))) if len(holes) > 1 else 0.0
-    return max(span / 150.0, 5.0)
-
-
-def _sequence(job: str, params: dict, result: dict, models: ModelLookup) -> Plan:
-    holes = _points(params.get("holes"), "params.holes")
-    line = _ordered(holes, result.get("order"), "order", params.get("start"))
-    motions = _arm_motion(params, result, models)
-    size = _hole_size(holes)
-    lines = [f"**Drilling sequence** (job `{job}`, {params.get('algorithm', '?')}): "
-             f"{len(holes)} holes", f"- length: {_fmt(result.get('length'))}"]
-    if "runtime_s" in result:
-        lines.append(f"- runtime: {float(result['runtime_s']):.2f} s")
-    return Plan(job, "sequence", robot=params.get("robot"),
-                spheres=(Spheres("holes", holes, np.full(len(holes), size), HOLE_COLOR),),
-                polylines=(Polyline("order", line, PATH_COLOR),), motions=motions,
-                summary="\n".join(lines))
-
-
-def _multiarm(job: str, params: dict, result: dict, models: ModelLookup,
-              rigs: Mapping[str, Any]) -> Plan:
-    rig_id = params.get("rig")
-    rig = rigs.get(rig_id) if rig_id is not None else None
+@drawer("multiarm")
+def _multiarm(params: MultiarmParams, result: MultiarmResult, ctx: DrawContext) -> Plan:
+    rig = ctx.rigs.get(params.rig)
     if rig is None:
-        raise ValueError(f"params.rig: unknown rig {rig_id!r}")
-    holes = params.get("holes") or {}
-    per_arm = result.get("trajectories", result.get("arms", {}))
-    if not isinstance(per_arm, Mapping):
-        raise ValueError("trajectories: expected an object keyed by arm name")
-    orders = result.get("orders", {}) if isinstance(result.get("orders"), Mapping) else {}
+        raise ValueError(f"params.rig: unknown rig {params.rig!r}")
+    for arm in result.arms:
+        if arm not in rig.arms:
+            raise ValueError(f"result.arms.{arm}: rig {params.rig!r} has no arm {arm!r}")
     spheres, polylines, motions = [], [], {}
     for arm, model in rig.arms.items():
+        data = result.arms.get(arm)
+        if data is None:
+            continue
         color = ARM_COLORS.get(arm, HOLE_COLOR)
-        arm_holes = None
-        if arm in holes and len(holes[arm]):
-            arm_holes = _points(holes[arm], f"params.holes.{arm}")
-            spheres.append(Spheres(f"{arm}/holes", arm_holes,
-                                   np.full(len(arm_holes), _hole_size(arm_holes)), color))
-        data = per_arm.get(arm)
-        order = orders.get(arm)
-        if isinstance(data, Mapping):
-            order = data.get("order", order)
-        if data is not None:
-            motions[arm] = _motion(data, f"trajectories.{arm}", model, t=result.get("t"))
-            tool = fk(model, motions[arm].q)[:, :3, 3]
-            if len(tool) > 1:
-                polylines.append(Polyline(f"{arm}/tool_path", tool, color))
-        if arm_holes is not None and order is not None:
-            polylines.append(Polyline(f"{arm}/order", _ordered(arm_holes, order,
-                                                               f"orders.{arm}"), color))
-    lines = [f"**Multi-arm plan** of `{rig_id}` (job `{job}`, "
-             f"{params.get('planner', '?')}): arms {', '.join(motions) or 'without motion'}"]
-    md = result.get("min_distance")
-    if isinstance(md, Mapping):
-        for pair, d in md.items():
-            worst = min(d) if isinstance(d, list) and d else d
-            lines.append(f"- min distance {pair}: {_fmt(worst)}")
-    if "collisions" in result:
-        c = result["collisions"]
-        lines.append(f"- collisions: {len(c) if isinstance(c, list) else c}")
-    return Plan(job, "multiarm", robot=rig_id, spheres=tuple(spheres),
+        motions[arm] = _motion(data.q, f"result.arms.{arm}.q", model, result.t, "result.t")
+        tool = fk(model, motions[arm].q)[:, :3, 3]
+        if len(tool) > 1:
+            polylines.append(Polyline(f"{arm}/tool_path", tool, color))
+        holes = _points(data.holes)
+        if len(holes):
+            spheres.append(Spheres(f"{arm}/holes", holes,
+                                   np.full(len(holes), _hole_size(holes)), color))
+            polylines.append(Polyline(f"{arm}/order", holes, color))
+    lines = [f"**Multi-arm plan** of `{params.rig}` (job `{ctx.job}`, {result.planner}): "
+             f"arms {', '.join(motions) or 'without motion'}"]
+    for pair, d in result.min_distance.items():
+        lines.append(f"- min distance {pair}: {_fmt(min(d) if d else None)}")
+    lines.append(f"- collisions: {result.collisions}")
+    if not result.success:
+        lines += [f"- **{m}**" for m in result.messages]
+    return Plan(ctx.job, "multiarm", robot=params.rig, spheres=tuple(spheres),
                 polylines=tuple(polylines), motions=motions, summary="\n".join(lines))
 
 
-def _tracking(job: str, params: dict, result: dict, models: ModelLookup) -> Plan:
-    robot = params.get("robot")
-    if robot is None:
-        raise ValueError("params.robot: missing")
-    model = models(robot)
-    dt = result.get("dt", params.get("dt", DEFAULT_TRACKING_DT))
-    motion = _motion(result.get("q"), "q", model, t=result.get("t"), dt=float(dt))
+@drawer("tracking")
+def _tracking(params: TrackingParams, result: TrackingResult, ctx: DrawContext) -> Plan:
+    model = ctx.models(params.robot)
+    motion = _motion(result.q, "result.q", model, result.t, "result.t")
+    desired = _points(result.x_desired)
+    if len(desired) != len(motion.q):
+        raise ValueError(f"result.x_desired: expected {len(motion.q)} points (one per step), "
+                         f"got {len(desired)}")
     actual = fk(model, motion.q)[:, :3, 3]
-    polylines = [Polyline("actual", actual, ACTUAL_COLOR)]
-    desired_key = next((k for k in ("x_desired", "desired") if k in result), None)
-    if desired_key is not None:
-        polylines.insert(0, Polyline("desired", _points(result[desired_key], desired_key, 2),
-                                     DESIRED_COLOR))
-    lines = [f"**Tracking** of `{robot}` (job `{job}`): {len(motion.q)} samples, "
+    lines = [f"**Tracking** of `{params.robot}` (job `{ctx.job}`): {len(motion.q)} samples, "
              f"{motion.duration:.1f} s",
-             f"- mean error: {float(result.get('mean_error', math.nan)):.4g} mm, "
-             f"max: {float(result.get('max_error', math.nan)):.4g} mm",
-             "- blue: desired tool path, orange: actual" if desired_key else
-             "- orange: actual tool path (the result carries no desired path)"]
-    return Plan(job, "tracking", robot=robot, polylines=tuple(polylines),
+             f"- mean error: {result.mean_error:.4g} mm, max: {result.max_error:.4g} mm",
+             "- blue: desired tool path, orange: actual"]
+    return Plan(ctx.job, "tracking", robot=params.robot,
+                polylines=(Polyline("desired", desired, DESIRED_COLOR),
+                           Polyline("actual", actual, ACTUAL_COLOR)),
                 motions={"": motion}, summary="\n".join(lines))
 
 
-def plan_from_result(kind: str, params: dict, result: Any, *, job: str = "",
+def _parse(model: type[BaseModel], value: Any, where: str) -> Any:
+    if isinstance(value, model):
+        return value
+    if not isinstance(value, Mapping):
+        raise ValueError(f"{where}: expected a JSON object")
+    try:
+        return model.model_validate(value)
+    except ValidationError as exc:
+        raise ValueError(error_text(exc, where)) from None
+
+
+def plan_from_result(kind: str, params: Any, result: Any, *, job: str = "",
                      models: ModelLookup, rigs: Mapping[str, Any] | None = None) -> Plan:
-    """The ``Plan`` of a succeeded job of ``kind`` with ``params`` and ``result`` (JSON).
+    """The ``Plan`` of a succeeded job of ``kind`` with ``params`` and ``result`` (JSON
+    objects, or the kind's models).
 
     ``models(id)`` resolves a robot id (``KeyError`` if unknown), ``rigs`` maps rig ids to
-    ``kinematics.rigs.Rig``. ValueError for a kind the viewer cannot draw or a result without
-    the documented shape (the message names the key).
+    ``kinematics.rigs.Rig``. ValueError for a kind the viewer cannot draw, or params or a
+    result that do not match the kind's models (the message names the key).
     """
-    if kind not in DRAWABLE_KINDS:
+    draw = DRAWERS.get(kind)
+    if draw is None:
         raise ValueError(f"the viewer cannot show jobs of kind '{kind}'; it shows "
-                         f"{', '.join(DRAWABLE_KINDS)}")
-    if not isinstance(result, Mapping):
-        raise ValueError("result: expected a JSON object")
-    params = dict(params or {})
+                         f"{', '.join(DRAWERS)}")
+    spec = KINDS[kind]
+    typed_params = _parse(spec.params, params, "params")
+    typed_result = _parse(spec.result, result, "result")
 
     def lookup(robot_id: str) -> RobotModel:
         try:
@@ -457,12 +424,4 @@ def plan_from_result(kind: str, params: dict, result: Any, *, job: str = "",
         except KeyError:
             raise ValueError(f"params.robot: unknown robot {robot_id!r}") from None
 
-    if kind == "workspace":
-        return _workspace(job, params, dict(result), lookup)
-    if kind == "path":
-        return _path(job, params, dict(result), lookup)
-    if kind == "sequence":
-        return _sequence(job, params, dict(result), lookup)
-    if kind == "multiarm":
-        return _multiarm(job, params, dict(result), lookup, rigs or {})
-    return _tracking(job, params, dict(result), lookup)
+    return draw(typed_params, typed_result, DrawContext(job, lookup, rigs or {}))

@@ -49,7 +49,7 @@ from kinematics.model import RobotModel
 
 from .gate import Gate, lock_websockets_server, new_secret
 from .gui import MAX_GUI_SAMPLES, MIN_GUI_SAMPLES, ControlPanel
-from .results import DRAWABLE_KINDS, Plan, plan_from_result
+from .results import DRAWERS, Plan, drawable, plan_from_result
 from .scene import (
     MM_TO_M,
     RobotDrawing,
@@ -540,9 +540,9 @@ class Viewer:
         has not succeeded, ValueError if its kind cannot be drawn or its result is not of the
         documented shape."""
         job = self.jobs.get(job_id)
-        if job.kind not in DRAWABLE_KINDS:
+        if not drawable(job.kind):
             raise ValueError(f"the viewer cannot show jobs of kind '{job.kind}'; it shows "
-                             f"{', '.join(DRAWABLE_KINDS)}")
+                             f"{', '.join(DRAWERS)}")
         if job.status != "succeeded":
             raise JobNotReady(job_id, job.status, job.error)
         result = json.loads(self.jobs.result(job_id))

@@ -66,7 +66,7 @@ class CylindersInverseResponse(BaseModel):
 
 
 class PoseToCylindersRequest(Body):
-    pose: pose_type(4) = Field(description="Target tool pose, 4x4, base frame, mm")
+    pose: pose_type(4) = Field(description="Target tool pose, 4x4, world frame (that of fk), mm")
     q0: JointVector | None = Field(
         None, description="Initial guess / preferred configuration (dof values)"
     )

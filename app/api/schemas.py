@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -120,7 +120,7 @@ class JacobianRequest(Body):
 class JacobianResponse(BaseModel):
     jacobian: list[list[float]] = Field(
         description="6 x dof: rows vx, vy, vz (mm per joint unit), wx, wy, wz (rad per joint "
-        "unit), base frame"
+        "unit), world frame (that of fk)"
     )
     manipulability: float = Field(description="sqrt(det(J J^T)) of the raw Jacobian")
     condition: float | None = Field(
@@ -219,6 +219,20 @@ class JobRecordOut(BaseModel):
     time_limit_s: float | None = Field(
         None, description="Seconds the job may run; past them it fails with 'time limit of "
         "N s exceeded' (null: no limit, jobs queued before limits existed)")
+
+
+class JobKindOut(BaseModel):
+    """A job kind of ``GET /jobs/kinds``."""
+
+    kind: str
+    description: str
+    params: dict[str, Any] = Field(description="JSON schema of the params (as params_schema; "
+                                   "kept for older clients)")
+    params_schema: dict[str, Any] = Field(description="JSON schema of the params")
+    result_schema: dict[str, Any] = Field(description="JSON schema of the result "
+                                          "(GET /jobs/{id}/result)")
+    max_params_bytes: int = Field(description="Most bytes of JSON the params may take")
+    plot: bool = Field(description="Whether GET /jobs/{id}/plot draws jobs of this kind")
 
 
 

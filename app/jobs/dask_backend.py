@@ -15,13 +15,13 @@ Dask is an optional extra (``pip install ".[dask]"``); the embedded default neve
 
 from __future__ import annotations
 
-import json
 import logging
 import time
 
 from ..store import Store
+from . import catalog  # noqa: F401 - a worker unpickling run_on_cluster gets every kind
 from .backend import SupervisedBackend
-from .kinds import JobCancelled, load_kind_modules, run_kind
+from .kinds import JobCancelled, execute
 
 __all__ = ["DaskBackend", "run_on_cluster"]
 
@@ -52,8 +52,7 @@ def run_on_cluster(job_id: str, kind: str, payload: dict) -> str:
             raise JobCancelled()
         progress_var.set([min(max(float(fraction), 0.0), 1.0), str(message)[:200]])
 
-    load_kind_modules()
-    return json.dumps(run_kind(kind, payload, progress), allow_nan=False)
+    return execute(kind, payload, progress)
 
 
 class DaskBackend(SupervisedBackend):

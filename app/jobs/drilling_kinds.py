@@ -7,6 +7,10 @@ arm``): field validators reuse the messages of ``planning.sequencing.check_holes
 ``planning.drilling.allocation``. Neither kind needs a robot (``needs_robot=False``):
 ``multiarm`` names a built-in rig. The algorithms' free-form parameters are checked against
 their bounded models (``planner_params``): every knob capped, 422 naming it.
+
+``multiarm``'s holes are allocated to the arms once per process, by the params' own check
+(``MultiarmParams.allocation()``), with the params' ``balance`` and ``counts``: what the check
+accepts is exactly what the run plans.
 """
 
 from __future__ import annotations
@@ -19,14 +23,17 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    PrivateAttr,
+    ValidationError,
     ValidationInfo,
     WithJsonSchema,
     field_validator,
     model_validator,
 )
+from pydantic_core import PydanticCustomError
 
 from ..fields import Point3 as Vec3
-from .kinds import MAX_SEED, JobKind, Params, Progress, register
+from .kinds import MAX_SEED, XYZ, JobKind, Params, Progress, Result, register
 from .planner_params import (
     MOVE_PLANNER_KNOBS,
     SEQUENCER_KNOBS,
@@ -35,7 +42,8 @@ from .planner_params import (
     sequencer_knobs,
 )
 
-__all__ = ["SequenceParams", "MultiarmParams", "run_sequence", "run_multiarm"]
+__all__ = ["SequenceParams", "SequenceResult", "MultiarmParams", "MultiarmResult",
+           "run_sequence", "run_multiarm"]
 
 #: Most holes one job takes (sequence) / one face (multiarm).
 MAX_HOLES = 2000
@@ -84,29 +92,44 @@ class SequenceParams(Params):
         return _sequencer_params(v, info.data.get("algorithm"))
 
 
-def run_sequence(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
+class SequenceResult(Result):
+    """A drilling order: an open path from ``start`` (or the first hole) through every hole."""
+
+    order: list[int] = Field(description="Hole indices (into params.holes) in drilling order")
+    length: float = Field(description="mm, from the start")
+    length_m: float = Field(description="m")
+    runtime_s: float
+    convergence: list[float] = Field(description="Best length after each iteration, mm")
+    algorithm: str = Field(description="The algorithm that ran ('auto' names its method in "
+                           "message)")
+    iterations: int
+    evaluations: int
+    message: str
+    seed: int
+
+
+def run_sequence(params: SequenceParams, progress: Progress) -> SequenceResult:
     """Drilling order of the holes: an open path from ``start`` (or the first hole)."""
     from planning.sequencing import sequence_holes
 
-    res = sequence_holes(params["holes"], params["start"], params["algorithm"],
-                         params["seed"], params["params"],
-                         progress=lambda f: progress(0.99 * f, "sequencing"))
+    res = sequence_holes(params.holes, params.start, params.algorithm, params.seed,
+                         params.params, progress=lambda f: progress(0.99 * f, "sequencing"))
     progress(1.0, "done")
-    return {
-        "order": res.order.tolist(),
-        "length": res.length,
-        "length_m": res.length / 1000.0,
-        "runtime_s": res.runtime_s,
-        "convergence": res.history.tolist(),
-        "algorithm": res.algorithm,
-        "iterations": res.iterations,
-        "evaluations": res.evaluations,
-        "message": res.message,
-        "seed": params["seed"],
-    }
+    return SequenceResult(
+        order=res.order.tolist(),
+        length=res.length,
+        length_m=res.length / 1000.0,
+        runtime_s=res.runtime_s,
+        convergence=res.history.tolist(),
+        algorithm=res.algorithm,
+        iterations=res.iterations,
+        evaluations=res.evaluations,
+        message=res.message,
+        seed=params.seed,
+    )
 
 
-register(JobKind("sequence", SequenceParams, run_sequence,
+register(JobKind("sequence", SequenceParams, SequenceResult, run_sequence,
                  "Drilling order of a face's holes (open path, IGA / ACO / AGA / auto)"))
 
 
@@ -158,17 +181,13 @@ class MultiarmParams(Params):
             raise ValueError(f"unknown rig {v!r}; built-in: {', '.join(BUILTIN_RIG_IDS)}")
         return v
 
+    _allocation: Any = PrivateAttr(None)
+
     @field_validator("holes")
     @classmethod
-    def _holes(cls, v, info: ValidationInfo):
-        if v is None or info.data.get("rig") is None:
-            return v
-        from kinematics.rigs import builtin_rig
-        from planning.drilling.allocation import assign_holes
-
-        if sum(len(h) for h in v.values()) > MAX_FACE_HOLES:
+    def _holes(cls, v):
+        if v is not None and sum(len(h) for h in v.values()) > MAX_FACE_HOLES:
             raise ValueError(f"at most {MAX_FACE_HOLES} holes in all")
-        assign_holes(builtin_rig(info.data["rig"]), v)
         return v
 
     @field_validator("planner_params")
@@ -192,23 +211,49 @@ class MultiarmParams(Params):
         return v
 
     @model_validator(mode="after")
-    def _one_source(self):
+    def _allocate(self):
+        """One source of holes, allocated to the arms as the run will plan them."""
+        from kinematics.rigs import builtin_rig
+        from planning.drilling.allocation import allocate_holes, assign_holes
+        from planning.drilling.patterns import face_pattern
+
         if (self.holes is None) == (self.face is None):
             raise ValueError("give exactly one of 'holes' (per arm) and 'face'")
-        if self.face is not None:
-            from kinematics.rigs import builtin_rig
-            from planning.drilling.allocation import allocate_holes
-            from planning.drilling.patterns import face_pattern
-
-            pattern = face_pattern(**self.face.model_dump())
-            if len(pattern.holes) > MAX_FACE_HOLES:
-                raise ValueError(f"face: {len(pattern.holes)} holes, at most "
-                                 f"{MAX_FACE_HOLES}; use a larger spacing")
-            allocate_holes(builtin_rig(self.rig), pattern.holes, balance="count",
-                           counts=self.counts)
-        elif self.counts is not None:
+        if self.face is None and self.counts is not None:
             raise ValueError("counts: only with 'face' (holes given per arm are allocated)")
+        rig = builtin_rig(self.rig)
+        if self.holes is not None:
+            try:
+                self._allocation = assign_holes(rig, self.holes)
+            except ValueError as exc:
+                raise _error_at("holes", exc) from None
+            return self
+        pattern = face_pattern(**self.face.model_dump())
+        if len(pattern.holes) > MAX_FACE_HOLES:
+            raise ValueError(f"face: {len(pattern.holes)} holes, at most "
+                             f"{MAX_FACE_HOLES}; use a larger spacing")
+        try:
+            self._allocation = allocate_holes(rig, pattern.holes, balance=self.balance,
+                                              counts=self.counts)
+        except ValueError as exc:
+            raise _error_at("counts" if str(exc).startswith("counts") else "face",
+                            exc) from None
         return self
+
+    def allocation(self):
+        """The holes allocated to the arms (``planning.drilling.allocation.Allocation``),
+        as checked."""
+        return self._allocation
+
+
+def _error_at(field: str, exc: ValueError) -> ValidationError:
+    """``exc`` as a validation error at its own ``loc`` if it carries one, else at
+    ``field``."""
+    loc = tuple(getattr(exc, "loc", None) or (field,))
+    # Braces would be read as placeholders of the message template.
+    message = str(exc).replace("{", "(").replace("}", ")")
+    return ValidationError.from_exception_data("MultiarmParams", [
+        {"type": PydanticCustomError("value_error", message), "loc": loc, "input": None}])
 
 
 def _window_min(values: np.ndarray, t: np.ndarray, out_t: np.ndarray) -> np.ndarray:
@@ -221,72 +266,108 @@ def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-def run_multiarm(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
+class MultiarmArm(Result):
+    """One arm's part of a face plan; ``q`` sampled at the plan's ``t``."""
+
+    holes: list[XYZ] = Field(description="Its holes in drilling order, mm")
+    hole_ids: list[str] = Field(description="Their names: 'left[3]' (holes given per arm) or "
+                                "the index in the generated face")
+    q: list[list[float]] = Field(description="Joints (rad / mm) at each of the plan's t")
+    move_starts_s: list[float]
+    end_s: float
+    travel_m: float = Field(description="Tool path length, m")
+    sequence_length_m: float = Field(description="Length of the drilling order, m")
+    planner_counts: dict[str, int] = Field(description="Moves planned by each planner")
+    peak_acceleration: list[float] = Field(description="Peak |acceleration| per joint")
+    max_rotational_acceleration: float = Field(description="rad/s^2")
+
+
+class MultiarmResult(Result):
+    """A whole face: per-arm plans sampled every ``output_dt`` s, checked every ``check_dt``
+    s for collisions between the arms' envelopes."""
+
+    rig: str
+    planner: Literal["iapf", "rrt"]
+    success: bool
+    messages: list[str] = Field(description="Failures (any makes the plan unsuccessful)")
+    notes: list[str]
+    middle_park: Literal["last_hole", "home"]
+    t: list[float] = Field(description="s, every output_dt")
+    arms: dict[str, MultiarmArm]
+    min_distance: dict[str, list[float]] = Field(
+        description="Least envelope distance per arm pair ('left-middle') over each interval "
+        "of t, mm")
+    min_distance_overall: dict[str, float | None] = Field(description="mm, per arm pair")
+    collisions: int = Field(description="Checked samples with overlapping envelopes")
+    collisions_by_pair: dict[str, int]
+    travel_m: dict[str, float] = Field(description="Tool path length per arm, m")
+    total_travel_m: float
+    acceleration_bound: float = Field(description="rad/s^2 (paper 002)")
+    check_dt: float | None = Field(description="s between collision checks")
+    samples: int = Field(description="Samples checked")
+    runtime_s: float
+
+
+def run_multiarm(params: MultiarmParams, progress: Progress) -> MultiarmResult:
     """Plan a whole face; joint trajectories and distances subsampled every ``output_dt``."""
     from kinematics.rigs import builtin_rig
-    from planning.drilling.allocation import assign_holes
     from planning.drilling.multiarm import PAPER_ACCELERATION_BOUND, ROTATIONAL_JOINTS, plan_face
-    from planning.drilling.patterns import face_pattern
 
-    rig = builtin_rig(params["rig"])
-    common = dict(planner=params["planner"], planner_params=params["planner_params"],
-                  sequencer=params["sequencer"], sequencer_params=params["sequencer_params"],
-                  seed=params["seed"], radii=params["radii"], standoff=params["standoff"],
-                  drill_time_s=params["drill_time_s"], middle_park=params["middle_park"],
-                  progress=progress)
-    if params["holes"] is not None:
-        plan = plan_face(rig, None, allocation=assign_holes(rig, params["holes"]), **common)
-        labels = [f"{a}[{k}]" for a in plan.allocation.arms
-                  for k in range(len(params["holes"][a]))]
+    allocation = params.allocation()
+    plan = plan_face(builtin_rig(params.rig), None, allocation=allocation,
+                     planner=params.planner, planner_params=params.planner_params,
+                     sequencer=params.sequencer, sequencer_params=params.sequencer_params,
+                     seed=params.seed, radii=params.radii, standoff=params.standoff,
+                     drill_time_s=params.drill_time_s, middle_park=params.middle_park,
+                     progress=progress)
+    if params.holes is not None:
+        labels = [f"{a}[{k}]" for a in allocation.arms for k in range(len(params.holes[a]))]
     else:
-        pattern = face_pattern(**params["face"])
-        plan = plan_face(rig, pattern.holes, balance=params["balance"],
-                         counts=params["counts"], **common)
-        labels = [f"{k}" for k in range(len(pattern.holes))]
+        labels = [f"{k}" for k in range(len(allocation.holes))]
     P = plan.allocation.holes
-    dt = params["output_dt"]
+    dt = params.output_dt
     out_t = np.arange(0.0, plan.t[-1] + 1e-9, dt) if len(plan.t) else np.zeros(1)
     pick = np.minimum(np.searchsorted(plan.t, out_t), len(plan.t) - 1)
     arms = {}
     for a, ap in plan.arms.items():
         tl = ap.timeline
         acc = plan.accelerations[a]
-        arms[a] = {
-            "holes": P[ap.order].tolist(),
-            "hole_ids": [labels[k] for k in ap.order],
-            "q": plan.q[a][pick].tolist(),
-            "move_starts_s": tl.starts.tolist(),
-            "end_s": tl.end,
-            "travel_m": ap.tool_path_m,
-            "sequence_length_m": ap.sequence_length_m,
-            "planner_counts": ap.planner_counts,
-            "peak_acceleration": acc.tolist(),
-            "max_rotational_acceleration": float(acc[list(ROTATIONAL_JOINTS)].max()),
-        }
+        arms[a] = MultiarmArm(
+            holes=P[ap.order].tolist(),
+            hole_ids=[labels[k] for k in ap.order],
+            q=plan.q[a][pick].tolist(),
+            move_starts_s=tl.starts.tolist(),
+            end_s=tl.end,
+            travel_m=ap.tool_path_m,
+            sequence_length_m=ap.sequence_length_m,
+            planner_counts=ap.planner_counts,
+            peak_acceleration=acc.tolist(),
+            max_rotational_acceleration=float(acc[list(ROTATIONAL_JOINTS)].max()),
+        )
     min_distance = {p: _window_min(d, plan.t, out_t).tolist()
                     for p, d in plan.min_distance.items()}
-    return {
-        "rig": params["rig"],
-        "planner": plan.planner,
-        "success": plan.success,
-        "messages": plan.messages,
-        "notes": plan.extras["notes"],
-        "middle_park": plan.middle_park,
-        "t": out_t.tolist(),
-        "arms": arms,
-        "min_distance": min_distance,
-        "min_distance_overall": {p: _finite(d.min()) for p, d in plan.min_distance.items()},
-        "collisions": plan.total_collisions,
-        "collisions_by_pair": plan.collisions,
-        "travel_m": {a: ap.tool_path_m for a, ap in plan.arms.items()},
-        "total_travel_m": plan.tool_path_m(),
-        "acceleration_bound": PAPER_ACCELERATION_BOUND,
-        "check_dt": float(plan.t[1] - plan.t[0]) if len(plan.t) > 1 else None,
-        "samples": int(len(plan.t)),
-        "runtime_s": plan.runtime_s,
-    }
+    return MultiarmResult(
+        rig=params.rig,
+        planner=plan.planner,
+        success=plan.success,
+        messages=plan.messages,
+        notes=plan.extras["notes"],
+        middle_park=plan.middle_park,
+        t=out_t.tolist(),
+        arms=arms,
+        min_distance=min_distance,
+        min_distance_overall={p: _finite(d.min()) for p, d in plan.min_distance.items()},
+        collisions=plan.total_collisions,
+        collisions_by_pair=plan.collisions,
+        travel_m={a: ap.tool_path_m for a, ap in plan.arms.items()},
+        total_travel_m=plan.tool_path_m(),
+        acceleration_bound=PAPER_ACCELERATION_BOUND,
+        check_dt=float(plan.t[1] - plan.t[0]) if len(plan.t) > 1 else None,
+        samples=int(len(plan.t)),
+        runtime_s=plan.runtime_s,
+    )
 
 
-register(JobKind("multiarm", MultiarmParams, run_multiarm,
+register(JobKind("multiarm", MultiarmParams, MultiarmResult, run_multiarm,
                  "Whole-face plan for a multi-arm jumbo: allocation, sequencing, "
                  "collision-free moves (IAPF or RRT), 10 ms collision check"))

@@ -1,40 +1,70 @@
-"""Job kinds: what a job can do, the parameters it takes, and the function that does it.
+"""Job kinds: what a job can do, the parameters it takes, the result it gives, and the function
+that does it.
 
-A kind's ``run(params, progress)`` is a module-level function, so a worker process (local
-pool or Dask) can import and call it. ``params`` is the validated parameter dict, plus
-anything the service resolved at submission (e.g. the robot model JSON under ``_model``, so
-a worker needs no access to the service's registry). ``progress(fraction, message)``
-reports 0..1; it raises ``JobCancelled`` when the job has been cancelled and the backend
-can only stop it cooperatively.
+A kind declares, side by side, its ``Params`` model (what ``POST /jobs`` accepts), its
+``Result`` model (the JSON of ``GET /jobs/{id}/result``) and its runner
+``run(params: Params, progress) -> Result``, a module-level function, so a worker process
+(local pool or Dask) can import and call it. ``progress(fraction, message)`` reports 0..1; it
+raises ``JobCancelled`` when the job has been cancelled and the backend can only stop it
+cooperatively. Optional hook: ``plot(params, result, robot) -> PNG bytes`` (``GET
+/jobs/{id}/plot``; ``robot`` is the job's robot model as the service knows it now, or None).
+Drawing in the viewer is a hook of the viewer itself (``web.results``): ``app`` does not
+import ``web``.
 
-Other modules add kinds with ``register``; the API validates params with the kind's
-pydantic model before anything is queued.
+What a job carries from submission to its worker (``JobPayload``): the validated params as
+JSON and the robot model the service resolved (so a worker needs no access to the service's
+registry). The worker rebuilds the params model from that JSON (``execute``), attaches the
+robot model to it (``Params.robot_model()``), runs the kind and checks what it returned
+against the kind's ``Result`` before the result is stored: a result that does not match fails
+the job, naming the field at fault.
+
+Kinds are registered with ``register``, which refuses a name registered before. The modules
+that define kinds are imported, explicitly, by ``app.jobs.catalog``; import ``KINDS`` from
+there to see every kind.
+
+Defined here: ``sleep`` and ``echo`` (diagnostics) and ``workspace``.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Generic, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, JsonValue, PrivateAttr, ValidationError
 
 from .caps import MAX_PARAMS_BYTES
+
+if TYPE_CHECKING:
+    from kinematics.model import RobotModel
 
 __all__ = [
     "JobKind",
     "JobCancelled",
+    "JobResultError",
+    "JobPayload",
+    "Params",
+    "Result",
     "Progress",
     "KINDS",
     "MAX_SEED",
+    "XYZ",
     "register",
     "get_kind",
-    "run_kind",
-    "KIND_MODULES",
-    "load_kind_modules",
+    "execute",
+    "error_text",
+    "absent_when_none",
+    "pick",
+    "SleepParams",
+    "SleepResult",
+    "EchoParams",
+    "EchoResult",
+    "WorkspaceParams",
+    "WorkspaceResult",
 ]
 
 Progress = Callable[[float, str], None]
@@ -42,52 +72,138 @@ Progress = Callable[[float, str], None]
 #: Largest random seed a job takes (a 32-bit generator seed).
 MAX_SEED = 2**32 - 1
 
+#: A point or vector of a result, mm.
+XYZ = Annotated[list[float], Field(min_length=3, max_length=3)]
+
 
 class JobCancelled(Exception):
     """Raised inside a job by ``progress`` once the job is cancelled."""
 
 
+class JobResultError(ValueError):
+    """A job returned something its kind's ``Result`` does not describe."""
+
+
 class Params(BaseModel):
-    """Job parameters: unknown fields and NaN/inf are rejected (422 naming the field)."""
+    """Job parameters: unknown fields and NaN/inf are rejected (422 naming the field).
+
+    A worker attaches the robot model the service resolved at submission; ``robot_model()``
+    returns it."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    _robot_model: RobotModel | None = PrivateAttr(None)
+
+    def attach_robot_model(self, model: RobotModel) -> None:
+        self._robot_model = model
+
+    def robot_model(self) -> RobotModel:
+        """The model of the job's robot: the one attached, else the built-in robot of that
+        id (a kind run in-process); ValueError if there is neither."""
+        if self._robot_model is not None:
+            return self._robot_model
+        from kinematics.library import builtin_model
+
+        robot = getattr(self, "robot", None)
+        try:
+            return builtin_model(robot)
+        except KeyError:
+            raise ValueError(f"robot '{robot}': its model was not attached to the job and "
+                             "it is not a built-in robot") from None
+
+
+class Result(BaseModel):
+    """A job's result: every field typed, nothing else, every number finite."""
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
+def _is_none(value: Any) -> bool:
+    return value is None
+
+
+def absent_when_none(description: str | None = None) -> Any:
+    """A result field that is left out of the JSON, rather than null, when it is None."""
+    return Field(None, exclude_if=_is_none, description=description)
+
+
+def pick(model: type[BaseModel], data: Mapping[str, Any]) -> dict[str, Any]:
+    """The fields of ``model`` out of ``data`` (a library's JSON-ready dict, which may carry
+    more than the job's result publishes)."""
+    return {name: data[name] for name in model.model_fields if name in data}
+
+
+def error_text(exc: ValidationError, prefix: str = "") -> str:
+    """The first error of ``exc`` as ``where: what`` (``result.q.3.1: Input should be a
+    finite number``), with the number of further errors."""
+    errors = exc.errors()
+    first = errors[0]
+    where = ".".join(str(p) for p in (prefix, *first["loc"]) if p != "")
+    more = f" (and {len(errors) - 1} more errors)" if len(errors) > 1 else ""
+    return f"{where or prefix or 'value'}: {first['msg']}{more}"
+
+
+P = TypeVar("P", bound=Params)
+R = TypeVar("R", bound=Result)
+
+
 @dataclass(frozen=True)
-class JobKind:
+class JobKind(Generic[P, R]):
     """A kind of job. ``needs_robot``: params name a robot whose model is attached;
-    ``max_params_bytes``: the most JSON its params may take (413 above)."""
+    ``max_params_bytes``: the most JSON its params may take (413 above); ``plot``: draws a
+    succeeded job as PNG (None: the kind has no plot)."""
 
     name: str
-    params: type[Params]
-    run: Callable[[dict[str, Any], Progress], Any]
+    params: type[P]
+    result: type[R]
+    run: Callable[[P, Progress], R]
     description: str
     needs_robot: bool = False
     max_params_bytes: int = MAX_PARAMS_BYTES
+    plot: Callable[[P, R, RobotModel | None], bytes] | None = None
+
+    def robot_id(self, params: P) -> str | None:
+        """The robot the job's params name (None: no robot)."""
+        return getattr(params, "robot", None)
+
+    def load_params(self, data: Any) -> P:
+        """The params model of ``data`` (stored or submitted JSON); ValidationError."""
+        return self.params.model_validate(data)
+
+    def load_result(self, data: Mapping[str, Any] | str | bytes) -> R:
+        """The result model of a stored result (JSON text or parsed); ValidationError."""
+        if isinstance(data, str | bytes):
+            return self.result.model_validate_json(data)
+        return self.result.model_validate(data)
+
+    def result_json(self, result: Any) -> str:
+        """The JSON text to store of what the runner returned, checked against ``result``;
+        ``JobResultError`` naming the field when it does not match."""
+        if isinstance(result, BaseModel):
+            text = result.model_dump_json()
+        else:
+            try:
+                text = json.dumps(result, allow_nan=False)
+            except (TypeError, ValueError) as exc:
+                raise JobResultError(f"the {self.name} job returned no JSON data: "
+                                     f"{exc}") from None
+        try:
+            self.result.model_validate_json(text)
+        except ValidationError as exc:
+            raise JobResultError(f"the {self.name} job's result does not match its schema "
+                                 f"({self.result.__name__}): "
+                                 f"{error_text(exc, 'result')}") from None
+        return text
 
 
 KINDS: dict[str, JobKind] = {}
 
-#: Modules that register job kinds; a worker imports them all before running a job.
-KIND_MODULES: list[str] = [
-    "app.jobs.kinds",
-    "app.jobs.model_kinds",
-    "app.jobs.path_kinds",
-    "app.jobs.tracking_kinds",
-    "app.jobs.drilling_kinds",
-]
-
-
-def load_kind_modules() -> None:
-    """Import every module that registers kinds (in a fresh worker process)."""
-    import importlib
-
-    for name in KIND_MODULES:
-        importlib.import_module(name)
-
 
 def register(kind: JobKind) -> JobKind:
-    """Make ``kind`` available to POST /jobs (idempotent for the same name and function)."""
+    """Make ``kind`` available to POST /jobs; ValueError if its name is taken."""
+    if kind.name in KINDS:
+        raise ValueError(f"job kind {kind.name!r} is already registered (by "
+                         f"{KINDS[kind.name].run.__module__})")
     KINDS[kind.name] = kind
     return kind
 
@@ -97,9 +213,36 @@ def get_kind(name: str) -> JobKind:
     return KINDS[name]
 
 
-def run_kind(name: str, params: dict[str, Any], progress: Progress) -> Any:
-    """Run a job of kind ``name`` (in whatever process the backend chose)."""
-    return KINDS[name].run(params, progress)
+class JobPayload(BaseModel):
+    """What a job carries to its worker: the validated params as JSON and the JSON of the
+    robot model the service resolved (``kinematics.model.RobotModel.to_dict``), if any."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    params: dict[str, JsonValue]
+    robot_model: dict[str, JsonValue] | None = None
+
+    @classmethod
+    def from_stored(cls, data: Mapping[str, Any]) -> JobPayload:
+        """The payload of a stored job; also reads the older layout (the params with the
+        model under ``_model``) of jobs queued before this one existed."""
+        if set(data) == {"params", "robot_model"}:
+            return cls.model_validate(data)
+        params = dict(data)
+        return cls(params=params, robot_model=params.pop("_model", None))
+
+
+def execute(name: str, payload: Mapping[str, Any], progress: Progress) -> str:
+    """Run a job in a worker: rebuild the params model from the payload, attach the robot
+    model, run the kind; the result's JSON text, checked against the kind's ``Result``."""
+    kind = get_kind(name)
+    job = JobPayload.from_stored(payload)
+    params = kind.load_params(job.params)
+    if job.robot_model is not None:
+        from kinematics.model import RobotModel
+
+        params.attach_robot_model(RobotModel.from_dict(job.robot_model))
+    return kind.result_json(kind.run(params, progress))
 
 
 # ---- sleep: a diagnostic kind to check the pool itself ----------------------------------
@@ -113,35 +256,45 @@ class SleepParams(Params):
     )
 
 
-def run_sleep(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
+class SleepResult(Result):
+    slept: float = Field(description="s")
+    pid: int = Field(description="The worker process")
+
+
+def run_sleep(params: SleepParams, progress: Progress) -> SleepResult:
     """Sleep in steps, reporting progress; optionally fail in one of two ways at the end."""
-    steps = params["steps"]
+    steps = params.steps
     for k in range(steps):
-        time.sleep(params["seconds"] / steps)
+        time.sleep(params.seconds / steps)
         progress((k + 1) / steps, f"step {k + 1} of {steps} (pid {os.getpid()})")
-    if params["outcome"] == "raise":
+    if params.outcome == "raise":
         raise RuntimeError("the sleep job was asked to fail")
-    if params["outcome"] == "exit":
+    if params.outcome == "exit":
         os._exit(3)  # no cleanup, no message: as a crash would
-    return {"slept": params["seconds"], "pid": os.getpid()}
+    return SleepResult(slept=params.seconds, pid=os.getpid())
 
 
-register(JobKind("sleep", SleepParams, run_sleep,
+register(JobKind("sleep", SleepParams, SleepResult, run_sleep,
                  "Sleep with progress; a diagnostic of the job pool"))
 
 
 # ---- echo ------------------------------------------------------------------------------
 class EchoParams(Params):
-    value: Any = Field(None, description="Any JSON value, returned as the result (within the "
-                       "limits of every job's params: size, nesting, finite numbers)")
+    value: JsonValue = Field(None, description="Any JSON value, returned as the result "
+                             "(within the limits of every job's params: size, nesting, finite "
+                             "numbers)")
 
 
-def run_echo(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
+class EchoResult(Result):
+    value: JsonValue = Field(description="The params' value")
+
+
+def run_echo(params: EchoParams, progress: Progress) -> EchoResult:
     progress(1.0, "done")
-    return {"value": params["value"]}
+    return EchoResult(value=params.value)
 
 
-register(JobKind("echo", EchoParams, run_echo, "Return the params' value"))
+register(JobKind("echo", EchoParams, EchoResult, run_echo, "Return the params' value"))
 
 
 # ---- workspace -------------------------------------------------------------------------
@@ -154,21 +307,45 @@ class WorkspaceParams(Params):
     projections: bool = True
 
 
-def run_workspace(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
+class WorkspaceProjection(Result):
+    counts: list[list[int]] = Field(description="Samples per cell")
+    first_edges: list[float] = Field(description="Cell edges along the first axis, mm")
+    second_edges: list[float] = Field(description="Cell edges along the second axis, mm")
+
+
+class WorkspaceResult(Result):
+    """The answer of ``POST /robots/{id}/workspace``, with the robot id."""
+
+    robot: str
+    samples: int
+    seed: int
+    min: XYZ = Field(description="Least x, y, z reached, mm")
+    max: XYZ = Field(description="Largest x, y, z reached, mm")
+    radial: list[float] = Field(min_length=2, max_length=2,
+                                description="[min, max] distance from the base z axis, mm")
+    vertical: list[float] = Field(min_length=2, max_length=2,
+                                  description="[min, max] height along the base z axis, mm")
+    voxel: float = Field(description="Voxel edge, mm")
+    volume: float = Field(description="mm^3, voxel estimate")
+    points: list[XYZ] = Field(description="Up to return_points tool positions, mm")
+    projections: dict[str, WorkspaceProjection] | None = absent_when_none(
+        "Occupancy images 'xy', 'xz', 'yz' (absent unless asked for)")
+
+
+def run_workspace(params: WorkspaceParams, progress: Progress) -> WorkspaceResult:
     """Monte Carlo workspace of a robot; the answer of POST /robots/{id}/workspace."""
-    from kinematics.model import RobotModel
     from kinematics.workspace import sample_workspace, workspace_report
 
-    model = RobotModel.from_dict(params["_model"])
+    model = params.robot_model()
     ws = sample_workspace(
-        model, params["samples"], seed=params["seed"], voxel=params["voxel"],
+        model, params.samples, seed=params.seed, voxel=params.voxel,
         progress=lambda f: progress(0.95 * f, "sampling"), max_samples=math.inf,
     )
-    out = {"robot": model.id} | workspace_report(ws, params["return_points"],
-                                                 params["projections"])
+    report = workspace_report(ws, params.return_points, params.projections)
+    out = WorkspaceResult(robot=model.id, **pick(WorkspaceResult, report))
     progress(1.0, "done")
     return out
 
 
-register(JobKind("workspace", WorkspaceParams, run_workspace,
+register(JobKind("workspace", WorkspaceParams, WorkspaceResult, run_workspace,
                  "Monte Carlo workspace (large N)", needs_robot=True))

@@ -5,6 +5,9 @@ forkserver that has numpy, scipy and the job kinds already imported, so a start 
 milliseconds), listens on a pipe per job for progress and the result, and writes both to the
 store. One process per job is what keeps a crash contained: a job that segfaults, calls
 ``os._exit`` or is killed for memory fails alone, and the next job gets a fresh process.
+A worker runs ``app.jobs.kinds.execute``: the params model rebuilt from the stored JSON, the
+result checked against its kind's ``Result`` before it is sent back (a mismatch fails the
+job, naming the field).
 Cancel terminates the process (SIGTERM, then SIGKILL after a grace period), well within 2 s;
 so does the job's time limit, counted from the start of its process, after which the job
 fails with "time limit of N s exceeded".
@@ -12,7 +15,6 @@ fails with "time limit of N s exceeded".
 
 from __future__ import annotations
 
-import json
 import logging
 import multiprocessing
 import signal
@@ -21,8 +23,9 @@ from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 
 from ..store import Store, StoreError
+from . import catalog
 from .backend import SupervisedBackend
-from .kinds import KIND_MODULES, JobCancelled, load_kind_modules, run_kind
+from .kinds import JobCancelled, execute
 
 __all__ = ["LocalBackend"]
 
@@ -49,9 +52,7 @@ def _child_main(conn: Connection, kind: str, payload: dict) -> None:
             conn.send(("progress", min(max(float(fraction), 0.0), 1.0), str(message)[:200]))
 
     try:
-        load_kind_modules()
-        result = run_kind(kind, payload, progress)
-        conn.send(("result", json.dumps(result, allow_nan=False)))
+        conn.send(("result", execute(kind, payload, progress)))
     except JobCancelled:
         conn.send(("cancelled", ""))
     except BaseException as exc:  # noqa: BLE001 - everything a job raises is its failure
@@ -85,7 +86,7 @@ class LocalBackend(SupervisedBackend):
         # Workers fork from a server that has already imported what jobs use.
         self._ctx.set_forkserver_preload(
             ["numpy", "scipy", "scipy.optimize", "scipy.interpolate", "scipy.sparse",
-             *KIND_MODULES]
+             catalog.__name__]
         )
         self._running: dict[str, _Running] = {}
         # Jobs claimed (marked running) whose process could not be started yet because the

@@ -8,10 +8,13 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from kinematics.errors import FieldError
+
 from ..registry import RobotRegistry
 from ..store import JobRecord, Store
 from .caps import DEFAULT_TIME_LIMIT_S, ParamsLimitError, check_params
-from .kinds import KINDS, get_kind, load_kind_modules
+from .catalog import KINDS, get_kind
+from .kinds import JobPayload
 
 __all__ = ["JobManager", "JobParamsError", "QueueFullError", "JobStateError",
            "MAX_ATTEMPTS", "make_backend"]
@@ -30,6 +33,18 @@ class JobParamsError(ValueError):
         self.loc = loc
         self.message = message
         self.status = status
+
+
+def _params_error(err: dict[str, Any]) -> tuple[list, str]:
+    """``loc`` and message of a params validation error. A ``FieldError`` raised by a
+    field's validator (a domain check of kinematics or planning) names its field relative to
+    the params; that ``loc`` is kept when it is the field validated or a part of it
+    (``params.population`` of ``params``), otherwise pydantic's location stands."""
+    where = tuple(err["loc"])
+    cause = (err.get("ctx") or {}).get("error")
+    if isinstance(cause, FieldError) and where and cause.loc[:len(where)] == where:
+        return ["params", *cause.loc], cause.message
+    return ["params", *where], err["msg"]
 
 
 class QueueFullError(RuntimeError):
@@ -68,7 +83,6 @@ class JobManager:
         self.max_queued = max_queued
         self.backend = None
         self._learned: dict[str, tuple[str, object]] = {}
-        load_kind_modules()
 
     # ---- lifecycle ------------------------------------------------------------------------
     def start(self) -> None:
@@ -112,18 +126,20 @@ class JobManager:
         except ParamsLimitError as exc:
             raise JobParamsError(exc.loc, exc.message, exc.status) from None
         try:
-            clean = spec.params.model_validate(params).model_dump(mode="json")
+            checked = spec.load_params(params)
         except ValidationError as exc:
-            err = exc.errors()[0]
-            raise JobParamsError(["params", *err["loc"]], err["msg"]) from None
-        payload = dict(clean)
-        if spec.needs_robot or clean.get("robot") is not None:
+            raise JobParamsError(*_params_error(exc.errors()[0])) from None
+        clean = checked.model_dump(mode="json")
+        payload = JobPayload(params=clean)
+        robot = spec.robot_id(checked)
+        if spec.needs_robot or robot is not None:
             try:
-                payload["_model"] = self.registry.get(clean["robot"]).to_dict()
+                payload.robot_model = self.registry.get(robot).to_dict()
             except KeyError:
-                raise JobParamsError(["params", "robot"], f"unknown robot '{clean['robot']}'",
+                raise JobParamsError(["params", "robot"], f"unknown robot '{robot}'",
                                      status=404) from None
-        job = self.store.add_job(uuid.uuid4().hex[:16], kind, clean, payload,
+        job = self.store.add_job(uuid.uuid4().hex[:16], kind, clean,
+                                 payload.model_dump(mode="json"),
                                  max_queued=self.max_queued, time_limit_s=time_limit_s)
         if job is None:
             raise QueueFullError(f"{self.max_queued} jobs are already queued; try again later")

@@ -3,16 +3,27 @@
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import ConfigDict, Field, model_validator
 
 from kinematics.model import MAX_DOF
 
 from ..fields import Coordinate, JointValue, Point3
-from .kinds import MAX_SEED, JobKind, Params, Progress, register
+from .kinds import (
+    MAX_SEED,
+    XYZ,
+    JobKind,
+    Params,
+    Progress,
+    Result,
+    absent_when_none,
+    pick,
+    register,
+)
 
-__all__ = ["CalibrateParams", "IKTrainParams"]
+__all__ = ["CalibrateParams", "CalibrateResult", "IKTrainParams", "IKTrainResult",
+           "RobotModelData"]
 
 #: Most measurements one calibration takes, and the most JSON its params may take: 10,000
 #: measured positions, or about 8,000 measured poses, at full float precision.
@@ -31,6 +42,8 @@ MAX_BOUND = 1e7
 PoseRow = Annotated[list[Coordinate], Field(min_length=4, max_length=4)]
 ParameterName = Annotated[str, Field(min_length=1, max_length=100)]
 Bound = Annotated[float, Field(ge=-MAX_BOUND, le=MAX_BOUND)]
+Matrix4 = Annotated[list[Annotated[list[float], Field(min_length=4, max_length=4)]],
+                    Field(min_length=4, max_length=4)]
 
 
 class Measurement(Params):
@@ -63,40 +76,94 @@ class CalibrateParams(Params):
     seed: int = Field(0, ge=0, le=MAX_SEED)
 
 
-def run_calibrate(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
+class RobotJointData(Result):
+    """A joint as in ``GET /robots/{id}/model``: D-H fields (``a``, ``alpha``, and ``d`` or
+    ``theta``) or product-of-exponentials fields (``axis``, ``point``), by convention."""
+
+    name: str
+    type: Literal["revolute", "prismatic"]
+    a: float | None = absent_when_none("mm (D-H)")
+    alpha: float | None = absent_when_none("rad (D-H)")
+    d: float | None = absent_when_none("mm (D-H, revolute joints)")
+    theta: float | None = absent_when_none("rad (D-H, prismatic joints)")
+    axis: XYZ | None = absent_when_none("Joint axis (product of exponentials)")
+    point: XYZ | None = absent_when_none("A point on the axis, mm (product of "
+                                         "exponentials, revolute joints)")
+    offset: float
+    lower: float
+    upper: float
+    velocity: float | None = absent_when_none("rad/s or mm/s")
+
+
+class RobotModelData(Result):
+    """A robot model as in ``GET /robots/{id}/model``; further model data (e.g.
+    ``cylinders``) rides along as stored."""
+
+    model_config = ConfigDict(extra="allow")
+
+    id: str
+    name: str
+    convention: Literal["mdh", "sdh", "poe"]
+    joints: list[RobotJointData]
+    base: Matrix4
+    tool: Matrix4
+    home: Matrix4 | None = absent_when_none("Home pose (product of exponentials)")
+
+
+class CalibrateResult(Result):
+    """Fitted constants (mm or rad) by parameter name; null where not finite."""
+
+    robot: str
+    values: dict[str, float] = Field(description="Fitted value per parameter")
+    initial: dict[str, float] = Field(description="Value in the model before the fit")
+    std_errors: dict[str, float | None] = Field(
+        description="Standard error per parameter (null: not determined by the data)")
+    unidentified: list[str] = Field(description="Parameters the data do not determine")
+    warnings: list[str]
+    rms_position: float | None = Field(description="mm")
+    rms_rotation: float | None = Field(description="rad (null without measured poses)")
+    position_residuals: list[XYZ] = Field(description="Measured minus fitted position per "
+                                          "measurement, mm")
+    rotation_residuals: list[Annotated[list[float | None], Field(min_length=3,
+                                                                 max_length=3)]] = Field(
+        description="Rotation vector per measurement, rad (nulls for positions only)")
+    success: bool
+    message: str
+    model: RobotModelData = Field(description="The fitted model")
+
+
+def run_calibrate(params: CalibrateParams, progress: Progress) -> CalibrateResult:
     """Fit the named constants; the answer carries values, errors, residuals, warnings."""
     from kinematics.calibration import calibrate
-    from kinematics.model import RobotModel
 
-    model = RobotModel.from_dict(params["_model"])
+    model = params.robot_model()
     progress(0.05, "fitting")
-    measurements = [{k: v for k, v in m.items() if v is not None}
-                    for m in params["measurements"]]
-    res = calibrate(model, measurements, params["parameters"], bounds=params["bounds"],
-                    regularization=params["regularization"], seed=params["seed"])
+    measurements = [m.model_dump(exclude_none=True) for m in params.measurements]
+    res = calibrate(model, measurements, params.parameters, bounds=params.bounds,
+                    regularization=params.regularization, seed=params.seed)
     progress(1.0, "done")
 
     def finite(x: float) -> float | None:
         return float(x) if math.isfinite(x) else None
 
-    return {
-        "robot": model.id,
-        "values": res.values,
-        "initial": res.initial,
-        "std_errors": {k: finite(v) for k, v in res.std_errors.items()},
-        "unidentified": list(res.unidentified),
-        "warnings": list(res.warnings),
-        "rms_position": finite(res.rms_position),
-        "rms_rotation": finite(res.rms_rotation),
-        "position_residuals": res.position_residuals.tolist(),
-        "rotation_residuals": [[finite(v) for v in row] for row in res.rotation_residuals],
-        "success": bool(res.success),
-        "message": res.message,
-        "model": res.model.to_dict(),
-    }
+    return CalibrateResult(
+        robot=model.id,
+        values=res.values,
+        initial=res.initial,
+        std_errors={k: finite(v) for k, v in res.std_errors.items()},
+        unidentified=list(res.unidentified),
+        warnings=list(res.warnings),
+        rms_position=finite(res.rms_position),
+        rms_rotation=finite(res.rms_rotation),
+        position_residuals=res.position_residuals.tolist(),
+        rotation_residuals=[[finite(v) for v in row] for row in res.rotation_residuals],
+        success=bool(res.success),
+        message=res.message,
+        model=RobotModelData.model_validate(res.model.to_dict()),
+    )
 
 
-register(JobKind("calibrate", CalibrateParams, run_calibrate,
+register(JobKind("calibrate", CalibrateParams, CalibrateResult, run_calibrate,
                  "Identify a model's constants from measured (q, pose/position) pairs",
                  needs_robot=True, max_params_bytes=MAX_CALIBRATE_PARAMS_BYTES))
 
@@ -118,15 +185,66 @@ class IKTrainParams(Params):
     )
 
 
-def run_ik_train(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
+Posture = Literal["free", "drilling"]
+
+
+class TrainingReport(Result):
+    """Test-set errors of the learned map alone and after numeric polishing
+    (``kinematics.learned_ik.TrainingReport``)."""
+
+    samples: int
+    train: int
+    test: int
+    max_relative_joint_error: float = Field(description="Fraction of a joint's range, worst "
+                                            "joint")
+    mean_relative_joint_error: float
+    per_joint: list[float] = Field(description="Largest relative error per joint")
+    max_position_error: float = Field(description="mm")
+    mean_position_error: float = Field(description="mm")
+    max_rotation_error: float = Field(description="rad")
+    polished_max_position_error: float = Field(description="mm")
+    polished_max_rotation_error: float = Field(description="rad")
+    polished_success: float = Field(description="Fraction solved by the numeric polish")
+
+
+class PaperFigures(Result):
+    """Paper 002's figures for the tunnel drilling arm, to compare with."""
+
+    max_relative_joint_error: float
+    max_position_error: float = Field(description="mm")
+
+
+class LearnedIKData(Result):
+    """The learned map (``kinematics.learned_ik.LearnedIK.to_dict``): training features and
+    targets, which joints are free, the values of the fixed ones and the joint limits."""
+
+    robot_id: str
+    features: list[list[float]]
+    targets: list[list[float]]
+    free: list[bool]
+    fixed_values: list[float]
+    lower: list[float]
+    upper: list[float]
+    posture: Posture
+
+
+class IKTrainResult(Result):
+    robot: str
+    posture: Posture
+    fixed: dict[int, float] = Field(description="Joint index -> value held fixed")
+    report: TrainingReport
+    paper: PaperFigures
+    learned: LearnedIKData
+
+
+def run_ik_train(params: IKTrainParams, progress: Progress) -> IKTrainResult:
     """Train the learned IK; the answer carries the test errors and the model's data."""
     from kinematics.drilling import DRILL_D7, check_drilling_structure
     from kinematics.learned_ik import train_learned_ik
-    from kinematics.model import RobotModel
 
-    model = RobotModel.from_dict(params["_model"])
-    posture = params["posture"]
-    fixed = {int(k): float(v) for k, v in (params["fixed"] or {}).items()}
+    model = params.robot_model()
+    posture = params.posture
+    fixed = {int(k): float(v) for k, v in (params.fixed or {}).items()}
     drilling = True
     try:
         check_drilling_structure(model)
@@ -136,15 +254,16 @@ def run_ik_train(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
         posture = "drilling" if drilling else "free"
     if posture == "drilling" and not fixed:
         fixed = {6: DRILL_D7}
-    learned, report = train_learned_ik(model, params["samples"], params["test_fraction"],
-                                       params["seed"], fixed=fixed, posture=posture,
+    learned, report = train_learned_ik(model, params.samples, params.test_fraction,
+                                       params.seed, fixed=fixed, posture=posture,
                                        progress=progress)
-    return {"robot": model.id, "posture": posture, "fixed": fixed,
-            "report": report.to_dict(),
-            "paper": {"max_relative_joint_error": 0.0062, "max_position_error": 2.94},
-            "learned": learned.to_dict()}
+    return IKTrainResult(
+        robot=model.id, posture=posture, fixed=fixed,
+        report=TrainingReport(**pick(TrainingReport, report.to_dict())),
+        paper=PaperFigures(max_relative_joint_error=0.0062, max_position_error=2.94),
+        learned=LearnedIKData(**pick(LearnedIKData, learned.to_dict())))
 
 
-register(JobKind("ik_train", IKTrainParams, run_ik_train,
+register(JobKind("ik_train", IKTrainParams, IKTrainResult, run_ik_train,
                  "Train the learned (RBF) IK; then method 'learned' works on /ik",
                  needs_robot=True))

@@ -7,7 +7,11 @@ and signs per field, and ``start``/``goal`` are checked against the scene (insid
 obstacle, outside the bounds) by field validators that reuse ``planning.scene``'s messages.
 
 ``robot`` is optional, so the kind is registered with ``needs_robot=False``; when the service
-attaches the model under ``_model`` it is used, else a built-in robot is looked up by id.
+attaches the robot's model it is used, else a built-in robot is looked up by id.
+
+The scene is built once per process: ``SceneIn.to_scene()`` keeps what it built, so the
+checks of ``start`` and ``goal`` and the run (in the worker, on the params rebuilt there)
+share one ``planning.scene.Scene``.
 
 Planner ``params`` are free-form in the contract but checked against the planner's bounded
 model (``planner_params``): every knob capped, and one batch of obstacle checks within
@@ -22,6 +26,7 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    PrivateAttr,
     ValidationInfo,
     WithJsonSchema,
     field_validator,
@@ -30,10 +35,21 @@ from pydantic import (
 
 from ..fields import MAX_COORDINATE_MM
 from ..fields import Point3 as Vec3
-from .kinds import MAX_SEED, JobKind, Params, Progress, register
+from .kinds import (
+    MAX_SEED,
+    XYZ,
+    JobKind,
+    Params,
+    Progress,
+    Result,
+    absent_when_none,
+    pick,
+    register,
+)
 from .planner_params import PATH_KNOBS, check_batch_memory, knobs_schema, path_knobs
 
-__all__ = ["PathParams", "PathCompareParams", "run_path", "run_path_compare"]
+__all__ = ["PathParams", "PathResult", "PathCompareParams", "PathCompareResult", "run_path",
+           "run_path_compare"]
 
 Algorithm = Literal["wolfpack_improved", "wolfpack", "ga", "aca", "afsa", "rrt_star", "auto"]
 #: Most obstacles in one scene.
@@ -79,13 +95,11 @@ class ObstacleIn(_Strict):
 
     @model_validator(mode="after")
     def _complete(self):
-        """The fields this type needs, and no others (messages from planning.scene)."""
+        """The fields this type needs, and no others (planning.scene's checks, which name
+        the field within the obstacle)."""
         from planning.scene import obstacle_from_dict
 
-        try:
-            obstacle_from_dict(self.to_plain(), "obstacle")
-        except ValueError as exc:
-            raise ValueError(str(exc).removeprefix("obstacle.")) from None
+        obstacle_from_dict(self.to_plain())
         return self
 
     def to_plain(self) -> dict[str, Any]:
@@ -98,6 +112,8 @@ class SceneIn(_Strict):
     obstacles: list[ObstacleIn] = Field(default_factory=list, max_length=MAX_OBSTACLES)
     safety_margin: float = Field(0.0, ge=0, le=MAX_SIZE_MM, description="mm")
 
+    _scene: Any = PrivateAttr(None)
+
     @field_validator("bounds")
     @classmethod
     def _ordered(cls, v):
@@ -106,11 +122,14 @@ class SceneIn(_Strict):
         return v
 
     def to_scene(self):
-        """The ``planning.scene.Scene``; ValueError names ``obstacles[i].<field>``."""
+        """The ``planning.scene.Scene`` (built on the first call, then kept); ValueError
+        names ``obstacles[i].<field>``."""
         from planning.scene import Scene
 
-        return Scene.create(self.bounds, [o.to_plain() for o in self.obstacles],
-                            self.safety_margin)
+        if self._scene is None:
+            self._scene = Scene.create(self.bounds, [o.to_plain() for o in self.obstacles],
+                                       self.safety_margin)
+        return self._scene
 
 
 class ArmOptions(_Strict):
@@ -186,42 +205,73 @@ class PathParams(_SceneTask):
         return self
 
 
-def _model(params: dict[str, Any]):
-    from kinematics.library import builtin_model
-    from kinematics.model import RobotModel
+class PathTrajectory(Result):
+    """The joint trajectory, sampled every ``arm.dt`` s (default duration / 200)."""
 
-    if params.get("_model") is not None:
-        return RobotModel.from_dict(params["_model"])
-    try:
-        return builtin_model(params["robot"])
-    except KeyError:
-        raise ValueError(f"robot '{params['robot']}': its model was not attached to the job "
-                         "and it is not a built-in robot") from None
+    t: list[float] = Field(description="s")
+    q: list[list[float]] = Field(description="rad / mm per sample")
+    qd: list[list[float]] = Field(description="rad/s / mm/s per sample")
+    qdd: list[list[float]] = Field(description="rad/s^2 / mm/s^2 per sample")
+    waypoints: list[list[float]] = Field(description="The joint waypoints it passes through")
 
 
-def run_path(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
+class PathCylinders(Result):
+    lengths: dict[str, list[float]] = Field(description="Length per cylinder along the tool "
+                                            "samples, mm")
+    within_stroke: bool | None = Field(description="Every length within its stroke")
+
+
+class PathResult(Result):
+    """A planned path; with ``robot``, for that robot's tool (``planning.arm_paths``)."""
+
+    path: list[XYZ] = Field(description="Start to goal, mm; empty when no clear path was "
+                            "found")
+    length: float | None = Field(description="mm (null on failure)")
+    min_clearance: float | None = Field(description="mm (null: no obstacles)")
+    runtime_s: float
+    convergence: list[float | None] = Field(description="Best cost after each iteration")
+    algorithm: str
+    evaluations: int
+    success: bool
+    status: str = Field(description="How planning ended (planning.status.PlanStatus): ok, "
+                        "no_path, budget_spent, collision, unreachable, out_of_limits, "
+                        "invalid_input")
+    message: str
+    raw_length: float | None = Field(description="mm, before shortcutting")
+    joint_path: list[list[float]] | None = Field(description="Joints at the tool samples "
+                                                 "(robot paths; null otherwise)")
+    trajectory: PathTrajectory | None = Field(description="Robot paths; null otherwise")
+    cylinders: PathCylinders | None = Field(description="Robot paths of robots with "
+                                            "cylinders; null otherwise")
+    robot: str | None = absent_when_none("Robot paths only")
+    arm_min_clearance: float | None = absent_when_none(
+        "Least clearance of the whole arm, mm (robot paths only)")
+    tool_samples: list[XYZ] | None = absent_when_none(
+        "Dense tool positions along the path, mm (robot paths only)")
+
+
+def run_path(params: PathParams, progress: Progress) -> PathResult:
     """Plan one path; with ``robot``, for that robot's tool (reach, whole-arm clearance,
     joint trajectory, cylinder lengths)."""
     from planning.arm_paths import plan_arm_path
     from planning.paths import plan_path
 
-    scene = SceneIn.model_validate(params["scene"]).to_scene()
+    scene = params.scene.to_scene()
 
     def report(f: float) -> None:
         progress(0.99 * f, "planning")
 
-    if params.get("robot"):
-        arm = ArmOptions.model_validate(params.get("arm") or {})
-        opts = arm.model_dump(exclude={"dt"})
-        res = plan_arm_path(_model(params), scene, params["start"], params["goal"],
-                            params["algorithm"], params["seed"], params.get("params"),
-                            report, **opts)
-        out = res.to_dict(arm.dt)
-        out["robot"] = params["robot"]
+    if params.robot:
+        arm = params.arm or ArmOptions()
+        res = plan_arm_path(params.robot_model(), scene, params.start, params.goal,
+                            params.algorithm, params.seed, params.params, report,
+                            **arm.model_dump(exclude={"dt"}))
+        out = PathResult(**pick(PathResult, res.to_dict(arm.dt) | {"robot": params.robot}))
     else:
-        out = plan_path(scene, params["start"], params["goal"], params["algorithm"],
-                        params["seed"], params.get("params"), report).to_dict()
-        out.update(joint_path=None, trajectory=None, cylinders=None)
+        res = plan_path(scene, params.start, params.goal, params.algorithm, params.seed,
+                        params.params, report)
+        out = PathResult(**pick(PathResult, res.to_dict()), joint_path=None, trajectory=None,
+                         cylinders=None)
     progress(1.0, "done")
     return out
 
@@ -256,20 +306,39 @@ class PathCompareParams(_SceneTask):
         return self
 
 
-def run_path_compare(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
+class CompareRow(Result):
+    """One algorithm over ``runs`` seeds (paper 000, Tables 3 and 4); null where no run
+    succeeded."""
+
+    algorithm: str
+    runs: int
+    successes: int
+    best_length: float | None = Field(description="mm")
+    mean_length: float | None = Field(description="mm")
+    mean_raw_length: float | None = Field(description="mm, before shortcutting")
+    mean_time_s: float | None
+    mean_evaluations: float | None
+
+
+class PathCompareResult(Result):
+    rows: list[CompareRow] = Field(description="One row per algorithm, in order")
+    runs: int
+
+
+def run_path_compare(params: PathCompareParams, progress: Progress) -> PathCompareResult:
     """Every algorithm over ``runs`` seeds: rows of best/mean length, mean time, successes."""
     from planning.path_compare import compare_planners
 
-    scene = SceneIn.model_validate(params["scene"]).to_scene()
-    rows = compare_planners(scene, params["start"], params["goal"], params["algorithms"],
-                            params["runs"], params["seed"], params.get("params"),
+    rows = compare_planners(params.scene.to_scene(), params.start, params.goal,
+                            params.algorithms, params.runs, params.seed, params.params,
                             lambda f: progress(0.99 * f, "comparing"))
     progress(1.0, "done")
-    return {"rows": [r.to_dict() for r in rows], "runs": params["runs"]}
+    return PathCompareResult(rows=[CompareRow(**pick(CompareRow, r.to_dict())) for r in rows],
+                             runs=params.runs)
 
 
-register(JobKind("path", PathParams, run_path,
+register(JobKind("path", PathParams, PathResult, run_path,
                  "Obstacle-avoiding path (paper 000's planners); optional robot tool path "
                  "with whole-arm clearance, joint trajectory and cylinder lengths"))
-register(JobKind("path_compare", PathCompareParams, run_path_compare,
+register(JobKind("path_compare", PathCompareParams, PathCompareResult, run_path_compare,
                  "Every path planner over many seeds (paper 000, Tables 3-4)"))

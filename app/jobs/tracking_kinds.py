@@ -15,19 +15,26 @@ tool position per step), ``errors`` (per step, their distance), ``joint_speed_ma
 ``saturated_steps``, ``t``, ``controller``, ``tune``, ``fitness_history`` (tuning) and, when
 ``runs > 1``, ``runs`` (per-run ``seed``, ``kp``, ``ki``, ``mean_error``, ``max_error``,
 ``std_error``) with ``summary`` (max/mean/std over runs) -- the top-level trajectory is the
-best run's.
+best run's. ``TrackingResult`` types every field.
+
+Plot (``GET /jobs/{id}/plot``): ``plot_tracking``, paper 003's Figure 7.
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import Field, model_validator
 
 from ..fields import Coordinate, JointValue
-from .kinds import MAX_SEED, JobKind, Params, Progress, register
+from .kinds import MAX_SEED, XYZ, JobKind, Params, Progress, Result, absent_when_none, register
 
-__all__ = ["TrackingParams", "run_tracking", "MAX_RUNS", "MAX_TUNING_WORK"]
+if TYPE_CHECKING:
+    from kinematics.model import RobotModel
+    from planning.tracking import EllipseTask, GainBounds, LineTask, PIGains
+
+__all__ = ["TrackingParams", "TrackingResult", "run_tracking", "plot_tracking", "MAX_RUNS",
+           "MAX_TUNING_WORK"]
 
 #: Most runs one job may ask for (the paper's 30).
 MAX_RUNS = 30
@@ -51,6 +58,11 @@ class LineTaskParams(Params):
     direction: Vector3 = [0.48, 0.6, -0.64]
     duration: Duration = 20.0
 
+    def to_task(self) -> LineTask:
+        from planning.tracking import LineTask
+
+        return LineTask(self.length, tuple(self.direction), self.duration)
+
 
 class EllipseTaskParams(Params):
     kind: Literal["ellipse"]
@@ -58,6 +70,12 @@ class EllipseTaskParams(Params):
     duration: Duration = 30.0
     normal: Vector3 = [0.0, 1.0, 0.0]
     major: Vector3 = [0.0, 0.0, 1.0]
+
+    def to_task(self) -> EllipseTask:
+        from planning.tracking import EllipseTask
+
+        return EllipseTask(tuple(self.radii), self.duration, tuple(self.normal),
+                           tuple(self.major))
 
 
 Gain = Annotated[float, Field(ge=0, le=1e6)]
@@ -68,6 +86,21 @@ class ControllerParams(Params):
     kp: Annotated[list[Gain], Field(min_length=1, max_length=2)] | Gain | None = Field(
         None, description="(kp_xy, kp_z) in 1/s, or one number for both")
     ki: Gain | None = Field(None, description="1/s^2")
+
+    def gains(self) -> PIGains:
+        """The gains given, the rest from the controller's defaults."""
+        from planning.tracking import DEFAULT_GAINS, UNTUNED_PI_GAINS, PIGains
+
+        default = DEFAULT_GAINS if self.kind == "default" else UNTUNED_PI_GAINS
+        if self.kp is None and self.ki is None:
+            return default
+        if self.kp is None:
+            kp = tuple(default.kp)
+        elif isinstance(self.kp, list):
+            kp = tuple(self.kp * 2) if len(self.kp) == 1 else tuple(self.kp)
+        else:
+            kp = (self.kp, self.kp)
+        return PIGains(kp, default.ki if self.ki is None else self.ki)
 
 
 class BoundsParams(Params):
@@ -81,6 +114,11 @@ class BoundsParams(Params):
             if not hi > lo:
                 raise ValueError(f"{name}: the upper bound must exceed the lower")
         return self
+
+    def to_bounds(self) -> GainBounds:
+        from planning.tracking import GainBounds
+
+        return GainBounds(tuple(self.kp), tuple(self.ki))
 
 
 class TrackingParams(Params):
@@ -120,54 +158,75 @@ class TrackingParams(Params):
         return self
 
 
-def _gains(controller: dict, default):
-    from planning.tracking import PIGains
-
-    kp, ki = controller.get("kp"), controller.get("ki")
-    if kp is None and ki is None:
-        return default
-    if kp is None:
-        kp = default.kp
-    elif not isinstance(kp, list):
-        kp = [kp, kp]
-    elif len(kp) == 1:
-        kp = kp * 2
-    return PIGains(tuple(kp), default.ki if ki is None else ki)
+Task = Annotated[LineTaskParams | EllipseTaskParams, Field(discriminator="kind")]
+Gains = Annotated[list[float], Field(min_length=2, max_length=2,
+                                     description="(kp_xy, kp_z), 1/s")]
 
 
-def run_tracking(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
+class TrackingRun(Result):
+    """One of several runs (they differ by the tuning seed)."""
+
+    seed: int
+    kp: Gains
+    ki: float = Field(description="1/s^2")
+    mean_error: float = Field(description="mm")
+    max_error: float = Field(description="mm")
+    std_error: float = Field(description="mm")
+
+
+class TrackingSummary(Result):
+    """Over the runs: the largest max error, the mean of the mean errors and of the standard
+    deviations, and the spread of the mean errors (mm)."""
+
+    max: float
+    mean: float
+    std: float
+    mean_error_std_over_runs: float
+
+
+class TrackingResult(Result):
+    """The best run's trajectory (mm, rad, s), with its errors and gains."""
+
+    robot: str
+    task: Task
+    controller: Literal["default", "pi"]
+    tune: Literal["hgso", "pso", "ga", "aco", "gwo"] | None
+    mean_error: float = Field(description="mm, over the path")
+    max_error: float = Field(description="mm")
+    std_error: float = Field(description="mm")
+    kp: Gains
+    ki: float = Field(description="1/s^2")
+    seed: int = Field(description="The tuning seed of this run")
+    t: list[float] = Field(description="s, per step")
+    x_desired: list[XYZ] = Field(description="Desired tool position per step, mm")
+    x_actual: list[XYZ] = Field(description="Reached tool position per step, mm")
+    q: list[list[float]] = Field(description="Joints per step, rad")
+    errors: list[float] = Field(description="Distance desired - reached per step, mm")
+    joint_speed_max: float = Field(description="rad/s")
+    saturated_steps: int
+    fitness_history: list[float] = Field(description="The tuner's best fitness per iteration "
+                                         "(empty without tuning)")
+    runs: list[TrackingRun] | None = absent_when_none("Per run, when runs > 1")
+    summary: TrackingSummary | None = absent_when_none("Over the runs, when runs > 1")
+
+
+def run_tracking(params: TrackingParams, progress: Progress) -> TrackingResult:
     """Simulate (and optionally tune) a tracking task; see the module docstring."""
     import numpy as np
 
-    from kinematics.model import RobotModel
-    from planning.tracking import (
-        DEFAULT_GAINS,
-        UNTUNED_PI_GAINS,
-        EllipseTask,
-        GainBounds,
-        LineTask,
-        TrackingConfig,
-        simulate,
-        tune_gains,
-    )
+    from planning.tracking import TrackingConfig, simulate, tune_gains
 
-    model = RobotModel.from_dict(params["_model"])
-    t = params["task"]
-    if t["kind"] == "line":
-        task = LineTask(t["length"], tuple(t["direction"]), t["duration"])
-    else:
-        task = EllipseTask(tuple(t["radii"]), t["duration"], tuple(t["normal"]),
-                           tuple(t["major"]))
-    ctrl = params["controller"]["kind"]
-    config = TrackingConfig(dt=params["dt"],
-                            q0=None if params["q0"] is None else tuple(params["q0"]))
-    bounds = GainBounds(tuple(params["bounds"]["kp"]), tuple(params["bounds"]["ki"]))
-    fixed = _gains(params["controller"], DEFAULT_GAINS if ctrl == "default" else UNTUNED_PI_GAINS)
-    runs, tuner = params["runs"], params["tune"]
+    model = params.robot_model()
+    task = params.task.to_task()
+    ctrl = params.controller.kind
+    config = TrackingConfig(dt=params.dt, q0=None if params.q0 is None else tuple(params.q0))
+    bounds = params.bounds.to_bounds()
+    fixed = params.controller.gains()
+    runs, tuner = params.runs, params.tune
 
     per_run, histories = [], []
     for r in range(runs):
-        seed = params["seed"] + r
+        seed = params.seed + r
         if tuner is None:
             gains = fixed
         else:
@@ -175,7 +234,7 @@ def run_tracking(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
                 progress(0.95 * (r + f) / runs, f"run {r + 1} of {runs}: tuning ({tuner})")
 
             tuned = tune_gains(model, task, tuner, seed, controller=ctrl, config=config,
-                               bounds=bounds, iterations=params["iterations"], progress=sub)
+                               bounds=bounds, iterations=params.iterations, progress=sub)
             gains = tuned.gains
             histories.append(tuned.optim.history.tolist())
         per_run.append((seed, gains))
@@ -184,42 +243,60 @@ def run_tracking(params: dict[str, Any], progress: Progress) -> dict[str, Any]:
     sim = simulate(model, task, [g for _, g in per_run], controller=ctrl, config=config)
     best = int(np.argmin(sim.mean_error))
     seed_best, g_best = per_run[best]
-    out: dict[str, Any] = {
-        "robot": model.id,
-        "task": t,
-        "controller": ctrl,
-        "tune": tuner,
-        "mean_error": float(sim.mean_error[best]),
-        "max_error": float(sim.max_error[best]),
-        "std_error": float(sim.std_error[best]),
-        "kp": list(g_best.kp),
-        "ki": g_best.ki,
-        "seed": seed_best,
-        "t": sim.t.tolist(),
-        "x_desired": sim.x_desired.tolist(),
-        "x_actual": (sim.x_desired - sim.error_xyz[best]).tolist(),
-        "q": sim.q[best].tolist(),
-        "errors": sim.error[best].tolist(),
-        "joint_speed_max": float(sim.joint_speed_max[best]),
-        "saturated_steps": int(sim.saturated_steps[best]),
-        "fitness_history": histories[best] if histories else [],
-    }
-    if runs > 1:
-        out["runs"] = [
-            {"seed": s, "kp": list(g.kp), "ki": g.ki, "mean_error": float(sim.mean_error[i]),
-             "max_error": float(sim.max_error[i]), "std_error": float(sim.std_error[i])}
+    several = runs > 1
+    out = TrackingResult(
+        robot=model.id,
+        task=params.task,
+        controller=ctrl,
+        tune=tuner,
+        mean_error=float(sim.mean_error[best]),
+        max_error=float(sim.max_error[best]),
+        std_error=float(sim.std_error[best]),
+        kp=list(g_best.kp),
+        ki=g_best.ki,
+        seed=seed_best,
+        t=sim.t.tolist(),
+        x_desired=sim.x_desired.tolist(),
+        x_actual=(sim.x_desired - sim.error_xyz[best]).tolist(),
+        q=sim.q[best].tolist(),
+        errors=sim.error[best].tolist(),
+        joint_speed_max=float(sim.joint_speed_max[best]),
+        saturated_steps=int(sim.saturated_steps[best]),
+        fitness_history=histories[best] if histories else [],
+        runs=[
+            TrackingRun(seed=s, kp=list(g.kp), ki=g.ki, mean_error=float(sim.mean_error[i]),
+                        max_error=float(sim.max_error[i]), std_error=float(sim.std_error[i]))
             for i, (s, g) in enumerate(per_run)
-        ]
-        out["summary"] = {
-            "max": float(sim.max_error.max()),
-            "mean": float(sim.mean_error.mean()),
-            "std": float(sim.std_error.mean()),
-            "mean_error_std_over_runs": float(sim.mean_error.std()),
-        }
+        ] if several else None,
+        summary=TrackingSummary(
+            max=float(sim.max_error.max()),
+            mean=float(sim.mean_error.mean()),
+            std=float(sim.std_error.mean()),
+            mean_error_std_over_runs=float(sim.mean_error.std()),
+        ) if several else None,
+    )
     progress(1.0, "done")
     return out
 
 
-register(JobKind("tracking", TrackingParams, run_tracking,
+def plot_tracking(params: TrackingParams, result: TrackingResult,
+                  robot: RobotModel | None) -> bytes:
+    """Paper 003's Figure 7 of a tracking run: joint angles, joint speeds (limits dashed),
+    error per axis and tool error against time. ``robot``: the robot's model as the service
+    knows it now (its joint names and speed limits), None if it was deleted since."""
+    from ..plots import tracking_png
+
+    dof = len(result.q[0])
+    names, limits = [f"j{i + 1}" for i in range(dof)], None
+    if robot is not None and robot.dof == dof:
+        names, limits = [j.name for j in robot.joints], robot.velocity_limits
+    tune = f", tuned by {result.tune.upper()}" if result.tune else ""
+    controller = {"pi": "PI", "default": "default (PI + feed-forward)"}[result.controller]
+    title = f"{result.robot}: {result.task.kind} task, {controller} controller{tune}"
+    return tracking_png(result.t, result.q, result.x_desired, result.x_actual, names, title,
+                        limits)
+
+
+register(JobKind("tracking", TrackingParams, TrackingResult, run_tracking,
                  "PI resolved-rate tool tracking; gains optionally tuned (paper 003)",
-                 needs_robot=True))
+                 needs_robot=True, plot=plot_tracking))

@@ -97,7 +97,8 @@ def solve_ik(
     all_solutions: bool = False,
     options: NumericOptions | None = None,
 ) -> list[IKResult]:
-    """Solve IK for target tool poses ``(B, 4, 4)`` or ``(4, 4)``; one result per pose.
+    """Solve IK for target tool poses ``T_world_tool (B, 4, 4)`` or ``(4, 4)`` (world frame,
+    as ``fk`` returns them; docs/conventions.md); one result per pose.
 
     ``method="auto"`` uses the closed form when the model has one, else numeric. Unreachable
     targets give results with ``success == False`` and a message, never an exception;

@@ -51,7 +51,7 @@ def supports(model: RobotModel) -> bool:
 def solve(
     model: RobotModel, T_target: np.ndarray, q0: np.ndarray | None = None
 ) -> list[IKResult]:
-    """Every IK branch for rigid target poses ``(B, 4, 4)`` (tool frame, base frame, mm),
+    """Every IK branch for rigid targets ``T_world_tool (B, 4, 4)`` (world frame, mm),
     solved for all targets at once; one ``IKResult`` per target."""
     j = model.joints
     B = T_target.shape[0]

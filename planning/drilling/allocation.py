@@ -17,7 +17,7 @@ The assignment with targets is a transportation problem, solved exactly as an as
 holes to arm "slots" (``scipy.optimize.linear_sum_assignment``): each arm has its target
 number of ordinary slots and, for holes that only it can reach, overflow slots whose
 penalty dwarfs any lateral cost. So reach always wins over balance, and balance over
-geometry. Holes no arm reaches raise ``ValueError`` naming them.
+geometry. Holes no arm reaches raise ``FieldError`` naming them.
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from kinematics.drilling import DRILL_D7, drill_ik
+from kinematics.errors import FieldError, loc_from_path
 from kinematics.fk import fk
 from kinematics.model import RobotModel
 from kinematics.rigs import Rig
@@ -143,19 +144,19 @@ def allocate_holes(
 
     ``balance``: ``"count"`` or ``"work"`` (see the module docstring); ``counts`` fixes the
     number of holes per arm instead (must add up to N). ``d7``: feed joint value at the holes
-    (mm). ValueError naming the field at fault; holes no arm reaches are named with each
-    arm's reason.
+    (mm). ``FieldError`` naming the field at fault; holes no arm reaches are named with
+    each arm's reason.
     """
     P = check_holes(holes, "holes")
     arms = tuple(rig.arms) if arms is None else tuple(arms)
     for name in arms:
         if name not in rig.arms:
-            raise ValueError(f"arms: rig {rig.id!r} has no arm {name!r} "
+            raise FieldError("arms", f"arms: rig {rig.id!r} has no arm {name!r} "
                              f"(arms: {', '.join(rig.arms)})")
     if not arms:
-        raise ValueError("arms: need at least one arm")
+        raise FieldError("arms", "arms: need at least one arm")
     if balance not in ("count", "work"):
-        raise ValueError(f"balance: must be 'count' or 'work', got {balance!r}")
+        raise FieldError("balance", f"balance: must be 'count' or 'work', got {balance!r}")
     reach, q_all, why = reach_table(rig, P, arms, d7)
     lost = np.flatnonzero(~reach.any(axis=1))
     if len(lost):
@@ -163,22 +164,25 @@ def allocate_holes(
             f"holes[{k}] {P[k].round(1).tolist()} ({' | '.join(why[k])})" for k in lost[:LIST_MAX]
         )
         more = f"; and {len(lost) - LIST_MAX} more" if len(lost) > LIST_MAX else ""
-        raise ValueError(f"holes: {len(lost)} out of reach of every arm: {listed}{more}")
+        raise FieldError("holes", f"holes: {len(lost)} out of reach of every arm: "
+                         f"{listed}{more}")
     lateral = np.array([rig.arms[a].base[1, 3] for a in arms])
     N = len(P)
     if counts is not None:
         unknown = [a for a in counts if a not in arms]
         if unknown:
-            raise ValueError(f"counts.{unknown[0]}: not one of the arms ({', '.join(arms)})")
+            raise FieldError(("counts", unknown[0]), f"counts.{unknown[0]}: not one of the "
+                             f"arms ({', '.join(arms)})")
         missing = [a for a in arms if a not in counts]
         if missing:
-            raise ValueError(f"counts.{missing[0]}: missing")
+            raise FieldError(("counts", missing[0]), f"counts.{missing[0]}: missing")
         for a in arms:
             c = counts[a]
             if isinstance(c, bool) or not isinstance(c, (int, np.integer)) or c < 0:
-                raise ValueError(f"counts.{a}: must be a non-negative whole number")
+                raise FieldError(("counts", a), f"counts.{a}: must be a non-negative whole "
+                                 "number")
         if sum(int(counts[a]) for a in arms) != N:
-            raise ValueError(f"counts: must add up to the {N} holes, got "
+            raise FieldError("counts", f"counts: must add up to the {N} holes, got "
                              f"{sum(int(counts[a]) for a in arms)}")
         targets = {a: int(counts[a]) for a in arms}
     else:
@@ -197,20 +201,23 @@ def assign_holes(rig: Rig, holes: Mapping[str, Any], d7: float = DRILL_D7,
                  name: str = "holes") -> Allocation:
     """An allocation given per arm: ``{"left": (n_l, 3), "middle": ..., ...}`` mm (rig
     frame). Checks the arm names, every list (``check_holes``), duplicates across arms, at
-    least 2 holes in all, and that each arm reaches its own holes; ValueError naming the
-    field, e.g. ``holes.left[3]``. Holes are numbered arm by arm, in the order given."""
+    least 2 holes in all, and that each arm reaches its own holes; ``FieldError`` naming
+    the field, e.g. ``holes.left[3]`` (``name`` is a field path). Holes are numbered arm by
+    arm, in the order given."""
+    loc = loc_from_path(name)
     if not isinstance(holes, Mapping) or not holes:
-        raise ValueError(f"{name}: must map arm names to hole lists")
+        raise FieldError(loc, f"{name}: must map arm names to hole lists")
     arms = tuple(a for a in rig.arms if a in holes)
     for a in holes:
         if a not in rig.arms:
-            raise ValueError(f"{name}.{a}: rig {rig.id!r} has no arm {a!r} "
+            raise FieldError((*loc, a), f"{name}.{a}: rig {rig.id!r} has no arm {a!r} "
                              f"(arms: {', '.join(rig.arms)})")
     per_arm = {a: check_holes(holes[a], f"{name}.{a}", min_count=0) for a in arms}
     P = np.concatenate([per_arm[a] for a in arms])
     label = [f"{name}.{a}[{k}]" for a in arms for k in range(len(per_arm[a]))]
+    hole_locs = [(*loc, a, k) for a in arms for k in range(len(per_arm[a]))]
     if len(P) < 2:
-        raise ValueError(f"{name}: need at least 2 holes in all, got {len(P)}")
+        raise FieldError(loc, f"{name}: need at least 2 holes in all, got {len(P)}")
     check_holes(P, name, labels=label)  # duplicates across arms
     arm_of = np.concatenate([np.full(len(per_arm[a]), k) for k, a in enumerate(arms)])
     reach, q_all, why = reach_table(rig, P, arms, d7)
@@ -218,8 +225,8 @@ def assign_holes(rig: Rig, holes: Mapping[str, Any], d7: float = DRILL_D7,
     if not mine.all():
         k = int(np.argmin(mine))
         own = [w for w in why[k] if w.startswith(f"{arms[arm_of[k]]}:")]
-        raise ValueError(f"{label[k]}: {P[k].round(1).tolist()} is out of reach of the "
-                         f"{arms[arm_of[k]]} arm ({own[0] if own else 'unreachable'})")
+        raise FieldError(hole_locs[k], f"{label[k]}: {P[k].round(1).tolist()} is out of reach "
+                         f"of the {arms[arm_of[k]]} arm ({own[0] if own else 'unreachable'})")
     indices = {a: np.flatnonzero(arm_of == k) for k, a in enumerate(arms)}
     q = {a: q_all[indices[a], k] for k, a in enumerate(arms)}
     targets = {a: int(len(indices[a])) for a in arms}
@@ -229,8 +236,8 @@ def assign_holes(rig: Rig, holes: Mapping[str, Any], d7: float = DRILL_D7,
 def home_configuration(model: RobotModel, face_x: float, d7: float = DRILL_D7) -> np.ndarray:
     """The paper's initial pose (Table 3, row 1: swing 0, boom level, roll 0, compensation
     90 deg / 90 deg) with the telescope set so the drill tip touches the face plane
-    ``x = face_x`` (rig frame, mm). ``(7,)``; ValueError naming ``face_x`` if the telescope
-    cannot reach it within its limits."""
+    ``x = face_x`` (rig frame, mm). ``(7,)``; ``FieldError`` naming ``face_x`` if the
+    telescope cannot reach it within its limits."""
     q = np.array([0.0, -np.pi / 2, 0.0, 0.0, np.pi / 2, np.pi / 2, d7])
     q1 = q.copy()
     q1[2] = 1.0
@@ -238,7 +245,7 @@ def home_configuration(model: RobotModel, face_x: float, d7: float = DRILL_D7) -
     q[2] = (face_x - x0) / (x1 - x0)
     lo, hi = model.joints[2].lower, model.joints[2].upper
     if not lo <= q[2] <= hi:
-        raise ValueError(f"face_x: {face_x:g} mm needs telescope {q[2]:.0f} mm for "
+        raise FieldError("face_x", f"face_x: {face_x:g} mm needs telescope {q[2]:.0f} mm for "
                          f"{model.id}'s home pose, outside {lo:g}..{hi:g} mm")
     return q
 

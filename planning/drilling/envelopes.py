@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinematics.errors import FieldError
 from kinematics.fk import fk_frames
 from kinematics.model import RobotModel
 
@@ -77,17 +78,18 @@ class ArmEnvelope:
 
 def drill_arm_envelope(radii: Mapping[str, float] | None = None) -> ArmEnvelope:
     """The tunnel drilling arm's envelope, with ``radii`` (mm, by link name) overriding the
-    defaults. ValueError naming ``radii.<link>`` for an unknown link or a bad radius."""
+    defaults. ``FieldError`` naming ``radii.<link>`` for an unknown link or a bad radius."""
     r = dict(DRILL_ARM_RADII)
     for name, value in (radii or {}).items():
         if name not in DRILL_ARM_LINKS:
-            raise ValueError(
-                f"radii.{name}: not a link of the drilling arm "
+            raise FieldError(
+                ("radii", name), f"radii.{name}: not a link of the drilling arm "
                 f"(links: {', '.join(DRILL_ARM_LINKS)})"
             )
         if isinstance(value, bool) or not isinstance(value, (int, float)) or \
                 not 0 <= value <= 5_000:
-            raise ValueError(f"radii.{name}: must be a number in [0, 5000] mm, got {value!r}")
+            raise FieldError(("radii", name),
+                             f"radii.{name}: must be a number in [0, 5000] mm, got {value!r}")
         r[name] = float(value)
     names = tuple(DRILL_ARM_LINKS)
     frames = np.array([DRILL_ARM_LINKS[n] for n in names])

@@ -36,6 +36,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinematics.errors import FieldError
+
+from ..status import PlanStatus
 from .space import ArmSpace, Obstacles
 
 __all__ = ["IAPF", "PathResult"]
@@ -44,16 +47,22 @@ __all__ = ["IAPF", "PathResult"]
 @dataclass(frozen=True)
 class PathResult:
     """A joint-space path: ``q (K, 3)`` planned joints (rad, rad, mm) from start to goal,
-    ``success``, a message, the smallest clearance along the path points (mm) and the
-    number of planner iterations."""
+    ``status`` (``ok``; ``collision``: the start or goal configuration collides;
+    ``invalid_input``: it leaves the joint limits (RRT-Connect checks); ``no_path``: stuck in
+    a local minimum; ``budget_spent``: out of steps or iterations), a message, the smallest
+    clearance along the path points (mm) and the number of planner iterations."""
 
     q: np.ndarray
-    success: bool
+    status: PlanStatus
     message: str
     min_clearance: float
     iterations: int
     planner: str
     extra: dict = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        return self.status is PlanStatus.OK
 
 
 @dataclass(frozen=True)
@@ -78,11 +87,14 @@ class IAPF:
         for name in ("attraction_gain", "goal_threshold", "influence", "step", "far_step",
                      "gradient_step"):
             if not getattr(self, name) > 0:
-                raise ValueError(f"planner_params.{name}: must be positive")
-        if self.repulsion_gain < 0 or self.safety < 0:
-            raise ValueError("planner_params.repulsion_gain: must be >= 0")
+                raise FieldError(("planner_params", name),
+                                 f"planner_params.{name}: must be positive")
+        for name in ("repulsion_gain", "safety"):
+            if getattr(self, name) < 0:
+                raise FieldError(("planner_params", name), f"planner_params.{name}: must be >= 0")
         if self.max_steps < 1:
-            raise ValueError("planner_params.max_steps: must be >= 1")
+            raise FieldError(("planner_params", "max_steps"),
+                             "planner_params.max_steps: must be >= 1")
 
     def forces(self, space: ArmSpace, obstacles: Obstacles, u: np.ndarray,
                u_goal: np.ndarray, clear_links: np.ndarray) -> np.ndarray:
@@ -124,9 +136,11 @@ class IAPF:
 
         (c_start, _), (c_goal, _) = clear(u), clear(ug)
         if c_goal.min() < 0:
-            return self._fail(space, [u], c_goal.min(), 0, "goal configuration collides")
+            return self._fail(space, [u], c_goal.min(), 0, "goal configuration collides",
+                              PlanStatus.COLLISION)
         if c_start.min() < 0:
-            return self._fail(space, [u], c_start.min(), 0, "start configuration collides")
+            return self._fail(space, [u], c_start.min(), 0, "start configuration collides",
+                              PlanStatus.COLLISION)
         margin = min(self.safety, float(c_start.min()), float(c_goal.min()))
         path = [u.copy()]
         c_links = c_start
@@ -138,7 +152,7 @@ class IAPF:
             if rho <= (self.far_step if far else self.step):
                 path.append(ug.copy())
                 min_c = min(min_c, float(c_goal.min()))
-                return PathResult(space.from_u(np.array(path)), True, "reached the goal",
+                return PathResult(space.from_u(np.array(path)), PlanStatus.OK, "reached the goal",
                                   min_c, k + 1, "iapf", {"escapes": escapes})
             F = self.forces(space, obstacles, u, ug, c_links)
             norm = float(np.linalg.norm(F))
@@ -166,12 +180,12 @@ class IAPF:
                 if escapes > self.max_escapes:
                     return self._fail(space, path, min_c, k + 1,
                                       f"stuck in a local minimum {rho_new:.3f} from the goal "
-                                      f"after {self.max_escapes} escapes")
+                                      f"after {self.max_escapes} escapes", PlanStatus.NO_PATH)
                 u, c_links = self._escape(space, obstacles, u, ug, c_links, path, margin, rng)
                 min_c = min(min_c, float(c_links.min()))
                 quiet, best_rho = 0, float(np.linalg.norm(ug - u))
         return self._fail(space, path, min_c, self.max_steps,
-                          f"goal not reached in {self.max_steps} steps")
+                          f"goal not reached in {self.max_steps} steps", PlanStatus.BUDGET_SPENT)
 
     def _escape(self, space, obstacles, u, ug, c_links, path, margin, rng):
         """Slide along the nearest obstacle (a residual local minimum): ``escape_steps`` steps
@@ -218,6 +232,6 @@ class IAPF:
         return u, c_links
 
     @staticmethod
-    def _fail(space, path, min_c, iterations, message) -> PathResult:
-        return PathResult(space.from_u(np.array(path)), False, message, float(min_c),
+    def _fail(space, path, min_c, iterations, message, status: PlanStatus) -> PathResult:
+        return PathResult(space.from_u(np.array(path)), status, message, float(min_c),
                           iterations, "iapf")

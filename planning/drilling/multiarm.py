@@ -23,8 +23,9 @@ if two side arms come too close when running at once, the later one waits for th
 
 Every plan is checked at the end: all arms sampled every ``check_dt`` (10 ms) on one time
 axis, the signed distance between every pair of arm envelopes computed at every sample.
-``FacePlan.success`` is False (and ``messages`` say why) if any pair's envelopes overlap, any
-move failed, or a joint leaves its limits: a colliding plan is never reported as a success.
+``FacePlan.success`` is False (``status`` says how and ``messages`` say why) if any pair's
+envelopes overlap, any move failed, or a joint leaves its limits: a colliding plan is never
+reported as a success.
 """
 
 from __future__ import annotations
@@ -39,11 +40,13 @@ from typing import Any
 import numpy as np
 
 from kinematics.drilling import DRILL_D7, drill_ik
+from kinematics.errors import FieldError
 from kinematics.fk import fk
 from kinematics.rigs import Rig
 
 from ..bspline import quintic_bspline
 from ..sequencing import SequenceResult, sequence_holes
+from ..status import PlanStatus
 from ..time_scaling import fit_to_limits
 from ..trajectory import Limits, Trajectory
 from .allocation import Allocation, allocate_holes, home_configuration
@@ -122,7 +125,8 @@ class Move:
 
     ``q_start``, ``q_goal (7,)`` are the drilling (or park) configurations it joins;
     ``path`` is the planner's raw joint-space path; ``tool_path_m`` the drill tip's path on
-    the face plane (m)."""
+    the face plane (m). ``status``: ``ok``, the planner's failure, or ``collision`` /
+    ``out_of_limits`` when no smoothing of its path stays clear and within the limits."""
 
     space: ArmSpace
     q_start: np.ndarray
@@ -132,10 +136,14 @@ class Move:
     t_retract: float
     t_advance: float
     path: PathResult
-    success: bool
+    status: PlanStatus
     message: str
     tool_path_m: float = 0.0
     waypoints: int = 0
+
+    @property
+    def success(self) -> bool:
+        return self.status is PlanStatus.OK
 
     @property
     def t_transfer(self) -> float:
@@ -227,7 +235,9 @@ class ArmPlan:
 class FacePlan:
     """A whole face: allocation, per-arm plans, the 10 ms check (``t (S,)``, ``q[arm]
     (S, 7)``, signed envelope distance per arm pair ``min_distance["left-middle"] (S,)`` mm,
-    samples with overlapping envelopes per pair ``collisions``), ``success`` and messages."""
+    samples with overlapping envelopes per pair ``collisions``), ``status`` and messages.
+    ``status`` is that of the first failure ``messages`` lists: a move's own, ``collision``
+    for overlapping envelopes, ``out_of_limits`` for a joint beyond its limits."""
 
     allocation: Allocation
     arms: dict[str, ArmPlan]
@@ -235,13 +245,17 @@ class FacePlan:
     q: dict[str, np.ndarray]
     min_distance: dict[str, np.ndarray]
     collisions: dict[str, int]
-    success: bool
+    status: PlanStatus
     messages: list[str]
     planner: str
     middle_park: str
     runtime_s: float
     accelerations: dict[str, np.ndarray]
     extras: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        return self.status is PlanStatus.OK
 
     @property
     def total_collisions(self) -> int:
@@ -281,17 +295,19 @@ def _rdp(u: np.ndarray, tol: float) -> np.ndarray:
 
 def smooth_path(space: ArmSpace, path_q: np.ndarray, obstacles: Obstacles,
                 limits: MotionLimits, *, tolerance: float = 0.004,
-                check_dt: float = CHECK_DT) -> tuple[Trajectory | None, int, str]:
+                check_dt: float = CHECK_DT
+                ) -> tuple[Trajectory | None, int, PlanStatus, str]:
     """Quintic B-spline through a simplified ``path_q (K, 3)`` at rest at both ends,
     time-scaled to ``limits``; checked every ``check_dt`` s for overlap with the obstacles
     and for joint limits. The simplification (Ramer-Douglas-Peucker in normalised units)
     is tightened (``tolerance``, /4, /16, every point, every point with midpoints) until
-    the check passes. Returns ``(trajectory or None, waypoints used, message)``."""
+    the check passes. Returns ``(trajectory or None, waypoints used, status, message)``: no
+    trajectory with status ``ok`` when the path does not move."""
     u = space.to_u(path_q)
     keep = np.concatenate([[True], np.linalg.norm(np.diff(u, axis=0), axis=1) > 1e-9])
     u, path_q = u[keep], path_q[keep]
     if len(u) < 2:
-        return None, len(u), "no motion"
+        return None, len(u), PlanStatus.OK, "no motion"
     attempts: list[np.ndarray] = [
         path_q[_rdp(u, tol)] for tol in (tolerance, tolerance / 4, tolerance / 16, 0.0)
     ]
@@ -300,7 +316,7 @@ def smooth_path(space: ArmSpace, path_q: np.ndarray, obstacles: Obstacles,
     mid[1::2] = 0.5 * (path_q[:-1] + path_q[1:])
     attempts.append(mid)
     lim = limits.limits()
-    why = ""
+    status, why = PlanStatus.OK, ""
     for W in attempts:
         h = np.linalg.norm(np.diff(space.to_u(W), axis=0), axis=1)
         traj = quintic_bspline(W, np.maximum(h, 1e-6) * 10.0)  # ~0.1 unit/s, then scaled
@@ -310,12 +326,15 @@ def smooth_path(space: ArmSpace, path_q: np.ndarray, obstacles: Obstacles,
         qp = traj.evaluate(ts)
         c = space.clearance(qp, obstacles)
         if np.all(c > 0):
-            return traj, len(W), "ok"
+            return traj, len(W), PlanStatus.OK, "ok"
         bad = int(np.argmin(c))
-        why = (f"smoothed transfer leaves the joint limits at t = {ts[bad]:.2f} s"
-               if not np.isfinite(c[bad]) else
-               f"smoothed transfer comes within {c[bad]:.0f} mm of an obstacle")
-    return None, len(attempts[-1]), why
+        if np.isfinite(c[bad]):
+            status = PlanStatus.COLLISION
+            why = f"smoothed transfer comes within {c[bad]:.0f} mm of an obstacle"
+        else:
+            status = PlanStatus.OUT_OF_LIMITS
+            why = f"smoothed transfer leaves the joint limits at t = {ts[bad]:.2f} s"
+    return None, len(attempts[-1]), status, why
 
 
 def plan_move(space: ArmSpace, obstacles: Obstacles, q_start: np.ndarray,
@@ -329,17 +348,17 @@ def plan_move(space: ArmSpace, obstacles: Obstacles, q_start: np.ndarray,
         path = fallback.plan(space, obstacles, q_start[:3], q_goal[:3], rng)
     t_r = limits.feed_duration(standoff)
     if not path.success:
-        return Move(space, q_start, q_goal, None, standoff, t_r, t_r, path, False,
+        return Move(space, q_start, q_goal, None, standoff, t_r, t_r, path, path.status,
                     f"{path.planner}: {path.message}")
-    traj, n_way, msg = smooth_path(space, path.q, obstacles, limits)
-    if traj is None and msg != "no motion":
-        return Move(space, q_start, q_goal, None, standoff, t_r, t_r, path, False, msg)
+    traj, n_way, status, msg = smooth_path(space, path.q, obstacles, limits)
+    if status is not PlanStatus.OK:
+        return Move(space, q_start, q_goal, None, standoff, t_r, t_r, path, status, msg)
     tool = 0.0
     if traj is not None:
         n = max(2, int(math.ceil(traj.duration / CHECK_DT)) + 1)
         yz = space.tip_yz(traj.evaluate(np.linspace(0, traj.duration, n)))
         tool = float(np.linalg.norm(np.diff(yz, axis=0), axis=1).sum()) / 1000.0
-    return Move(space, q_start, q_goal, traj, standoff, t_r, t_r, path, True, "ok",
+    return Move(space, q_start, q_goal, traj, standoff, t_r, t_r, path, PlanStatus.OK, "ok",
                 tool, n_way)
 
 
@@ -416,28 +435,31 @@ def _capsules_dedup(model, q, envelope, moving) -> np.ndarray:
 # ---- the face planner ------------------------------------------------------------------------
 def make_planner(name: str, params: Mapping[str, Any] | None = None):
     """The move planner ``name`` (``"iapf"`` or ``"rrt"``) with ``params`` overriding its
-    defaults; ValueError naming ``planner`` or ``planner_params.<name>``."""
+    defaults; ``FieldError`` naming ``planner`` or ``planner_params.<name>``."""
     if name not in PLANNERS:
-        raise ValueError(f"planner: must be one of {', '.join(PLANNERS)}, got {name!r}")
+        raise FieldError("planner", f"planner: must be one of {', '.join(PLANNERS)}, "
+                         f"got {name!r}")
     cls = PLANNERS[name]
     known = set(cls.__dataclass_fields__)
     for key in params or {}:
         if key not in known:
-            raise ValueError(f"planner_params.{key}: not a parameter of {name} "
-                             f"(known: {', '.join(sorted(known))})")
+            raise FieldError(("planner_params", key), f"planner_params.{key}: not a parameter "
+                             f"of {name} (known: {', '.join(sorted(known))})")
     return cls(**dict(params or {}))
 
 
 def _arm_moves(space, obstacles, configs, planner, fallback, rng, limits, standoff,
-               t0, drill_time_s, on_move=None) -> tuple[ArmTimeline, list[str]]:
-    """Moves through ``configs (K, 7)`` (first = where the arm is), starting at ``t0``."""
+               t0, drill_time_s, on_move=None
+               ) -> tuple[ArmTimeline, list[tuple[PlanStatus, str]]]:
+    """Moves through ``configs (K, 7)`` (first = where the arm is), starting at ``t0``; with
+    the status and message of each failed move."""
     moves, starts, msgs = [], [], []
     t = t0
     for k in range(1, len(configs)):
         mv = plan_move(space, obstacles, configs[k - 1], configs[k], planner, rng,
                        limits=limits, standoff=standoff, fallback=fallback)
         if not mv.success:
-            msgs.append(f"move {k}: {mv.message}")
+            msgs.append((mv.status, f"move {k}: {mv.message}"))
         moves.append(mv)
         starts.append(t)
         t += mv.duration + drill_time_s
@@ -481,13 +503,14 @@ def plan_face(
     t_start = time.perf_counter()
     report = progress or (lambda f, m: None)
     if middle_park not in ("last_hole", "home"):
-        raise ValueError(f"middle_park: must be 'last_hole' or 'home', got {middle_park!r}")
+        raise FieldError("middle_park", "middle_park: must be 'last_hole' or 'home', got "
+                         f"{middle_park!r}")
     if not 0 <= standoff <= 2000:
-        raise ValueError("standoff: must be in [0, 2000] mm")
+        raise FieldError("standoff", "standoff: must be in [0, 2000] mm")
     if not drill_time_s >= 0:
-        raise ValueError("drill_time_s: must be >= 0")
+        raise FieldError("drill_time_s", "drill_time_s: must be >= 0")
     if not 1e-4 <= check_dt <= 0.1:
-        raise ValueError("check_dt: must be in [0.0001, 0.1] s")
+        raise FieldError("check_dt", "check_dt: must be in [0.0001, 0.1] s")
     limits = limits or MotionLimits()
     main = make_planner(planner, planner_params)
     other_name = "rrt" if planner == "iapf" else "iapf"
@@ -498,7 +521,8 @@ def plan_face(
     P = allocation.holes
     face_x = float(P[:, 0].mean())
     if np.ptp(P[:, 0]) > 1.0:
-        raise ValueError("holes: all holes must lie on one face plane (same x within 1 mm)")
+        raise FieldError("holes", "holes: all holes must lie on one face plane (same x within "
+                         "1 mm)")
     arms = tuple(rig.arms)  # every arm is there, with holes or parked
     working = [a for a in arms if a in allocation.arms and len(allocation.indices[a])]
     rng = np.random.default_rng(seed)
@@ -529,7 +553,8 @@ def plan_face(
                     "configs": np.vstack([park[a][None], q_holes])}
     report(0.05, "sequenced")
 
-    messages: list[str] = []  # failures: any makes the plan unsuccessful
+    # failures, by the arm (or pair of arms) at fault: any makes the plan unsuccessful
+    failures: list[tuple[str, PlanStatus, str]] = []
     notes: list[str] = []
     timelines = {a: ArmTimeline(park[a], (), np.zeros(0)) for a in arms}
     park_used = "none"
@@ -549,7 +574,7 @@ def plan_face(
             configs = np.vstack([configs, park[middle][None]])
         tl, msgs = _arm_moves(spaces[middle], obs, configs, main, backup, rng, limits,
                               standoff, 0.0, drill_time_s, tick)
-        messages += [f"{middle} {m}" for m in msgs]
+        failures += [(middle, st, f"{middle} {m}") for st, m in msgs]
         timelines[middle] = tl
         t_phase2 = tl.end
     # phase 2: the other arms at once, the middle arm (and idle arms) parked
@@ -560,7 +585,7 @@ def plan_face(
         obs = Obstacles.of_arms(parked, envelope)
         tl, msgs = _arm_moves(spaces[a], obs, plans[a]["configs"], main, backup, rng, limits,
                               standoff, t_phase2, drill_time_s, tick)
-        messages += [f"{a} {m}" for m in msgs]
+        failures += [(a, st, f"{a} {m}") for st, m in msgs]
         timelines[a] = tl
     report(0.9, "checking")
     t, q, dist = _check(rig, envelope, timelines, check_dt)
@@ -572,22 +597,23 @@ def plan_face(
             obs = Obstacles.of_arms(parked, envelope)
             tl, msgs = _arm_moves(spaces[b], obs, plans[b]["configs"], main, backup, rng,
                                   limits, standoff, timelines[a].end, drill_time_s)
-            messages = [m for m in messages if not m.startswith(f"{b} ")]
-            messages += [f"{b} {m}" for m in msgs]
+            failures = [f for f in failures if f[0] != b]
+            failures += [(b, st, f"{b} {m}") for st, m in msgs]
             notes.append(f"{b} waits for {a}: running at once they would meet")
             timelines[b] = tl
             t, q, dist = _check(rig, envelope, timelines, check_dt)
     collisions = {p: int((d < 0).sum()) for p, d in dist.items()}
     for p, n in collisions.items():
         if n:
-            messages.append(f"{p}: envelopes overlap at {n} samples "
-                            f"(closest {dist[p].min():.0f} mm)")
+            failures.append((p, PlanStatus.COLLISION, f"{p}: envelopes overlap at {n} samples "
+                             f"(closest {dist[p].min():.0f} mm)"))
     for a in arms:
         bad = ~rig.arms[a].within_limits(q[a], tol=1e-6)
         if bad.any():
             k = int(np.argmax(bad))
             names = rig.arms[a].limit_violations(q[a][k], tol=1e-6)
-            messages.append(f"{a}: {', '.join(names)} outside limits at t = {t[k]:.2f} s")
+            failures.append((a, PlanStatus.OUT_OF_LIMITS,
+                             f"{a}: {', '.join(names)} outside limits at t = {t[k]:.2f} s"))
     acc = _accelerations(q, t)
     arm_plans = {}
     for a in arms:
@@ -602,7 +628,9 @@ def plan_face(
         arm_plans[a] = ArmPlan(a, plans[a]["order"], res, tl, straight / 1000.0,
                                float(sum(mv.tool_path_m for mv in tl.moves)), counts_used)
     report(1.0, "done")
-    return FacePlan(allocation, arm_plans, t, q, dist, collisions, not messages, messages,
+    status = failures[0][1] if failures else PlanStatus.OK
+    return FacePlan(allocation, arm_plans, t, q, dist, collisions, status,
+                    [m for _, _, m in failures],
                     planner, park_used, time.perf_counter() - t_start, acc,
                     {"face_x": face_x, "middle": middle, "phase2_start_s": t_phase2,
                      "notes": notes})

@@ -16,6 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinematics.errors import FieldError
+
+from ..status import PlanStatus
 from .iapf import PathResult
 from .space import ArmSpace, Obstacles
 
@@ -35,9 +38,14 @@ class RRTConnect:
     def __post_init__(self) -> None:
         for name in ("step", "edge_resolution"):
             if not getattr(self, name) > 0:
-                raise ValueError(f"planner_params.{name}: must be positive")
-        if self.max_iterations < 1 or self.shortcut < 0 or self.safety < 0:
-            raise ValueError("planner_params.max_iterations: must be >= 1")
+                raise FieldError(("planner_params", name),
+                                 f"planner_params.{name}: must be positive")
+        if self.max_iterations < 1:
+            raise FieldError(("planner_params", "max_iterations"),
+                             "planner_params.max_iterations: must be >= 1")
+        for name in ("shortcut", "safety"):
+            if getattr(self, name) < 0:
+                raise FieldError(("planner_params", name), f"planner_params.{name}: must be >= 0")
 
     def plan(self, space: ArmSpace, obstacles: Obstacles, q_start, q_goal,
              rng: np.random.Generator) -> PathResult:
@@ -45,12 +53,14 @@ class RRTConnect:
         us = space.to_u(np.asarray(q_start, dtype=float)[None])[0]
         ug = space.to_u(np.asarray(q_goal, dtype=float)[None])[0]
         c = space.clearance(space.from_u(np.array([us, ug])), obstacles)
-        if c[1] < 0:
-            return PathResult(space.from_u(us[None]), False, "goal configuration collides",
-                              float(c[1]), 0, "rrt")
-        if c[0] < 0:
-            return PathResult(space.from_u(us[None]), False, "start configuration collides",
-                              float(c[0]), 0, "rrt")
+        for k, end in ((1, "goal"), (0, "start")):
+            if c[k] == -np.inf:  # how ``ArmSpace.clearance`` marks leaving the joint limits
+                return PathResult(space.from_u(us[None]), PlanStatus.INVALID_INPUT,
+                                  f"{end} configuration leaves the joint limits", float(c[k]),
+                                  0, "rrt")
+            if c[k] < 0:
+                return PathResult(space.from_u(us[None]), PlanStatus.COLLISION,
+                                  f"{end} configuration collides", float(c[k]), 0, "rrt")
         margin = min(self.safety, float(c.min()))
         trees = [([us], [-1]), ([ug], [-1])]
         for it in range(self.max_iterations):
@@ -67,9 +77,10 @@ class RRTConnect:
                 P = np.array(path)
                 P = self._shortcut(space, obstacles, P, margin, rng)
                 min_c = float(space.clearance(space.from_u(P), obstacles).min())
-                return PathResult(space.from_u(P), True, "connected", min_c, it + 1, "rrt",
+                return PathResult(space.from_u(P), PlanStatus.OK, "connected", min_c, it + 1,
+                                  "rrt",
                                   {"nodes": len(trees[0][0]) + len(trees[1][0])})
-        return PathResult(space.from_u(us[None]), False,
+        return PathResult(space.from_u(us[None]), PlanStatus.BUDGET_SPENT,
                           f"no connection in {self.max_iterations} iterations",
                           float(c.min()), self.max_iterations, "rrt")
 

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from kinematics.errors import FieldError
+
 from .aco import ACO as ACO
 from .aga import AGA as AGA
 from .auto import Auto as Auto
@@ -43,22 +45,22 @@ SEQUENCERS: dict[str, type] = {"iga": IGA, "aco": ACO, "aga": AGA, "auto": Auto}
 
 
 def make_sequencer(algorithm: str, params: dict[str, Any] | None = None):
-    """The sequencer ``algorithm`` with ``params`` overriding its defaults. ValueError naming
-    ``algorithm`` or ``params.<name>`` for an unknown algorithm or parameter."""
+    """The sequencer ``algorithm`` with ``params`` overriding its defaults. ``FieldError``
+    naming ``algorithm``, or ``params.<name>`` for an unknown or out-of-range parameter."""
     if algorithm not in SEQUENCERS:
-        raise ValueError(f"algorithm: must be one of {', '.join(SEQUENCERS)}, got {algorithm!r}")
+        raise FieldError("algorithm", f"algorithm: must be one of {', '.join(SEQUENCERS)}, "
+                         f"got {algorithm!r}")
     cls = SEQUENCERS[algorithm]
     params = dict(params or {})
     known = {f.name for f in fields(cls)}
     for key in params:
         if key not in known:
-            raise ValueError(
-                f"params.{key}: not a parameter of {algorithm} (known: {', '.join(sorted(known))})"
-            )
+            raise FieldError(("params", key), f"params.{key}: not a parameter of {algorithm} "
+                             f"(known: {', '.join(sorted(known))})")
     try:
         return cls(**params)
     except TypeError as exc:  # a value of the wrong type reaching a comparison
-        raise ValueError(f"params: {exc}") from None
+        raise FieldError("params", f"params: {exc}") from None
 
 
 def sequence_holes(
@@ -73,7 +75,7 @@ def sequence_holes(
 ) -> SequenceResult:
     """Drilling order of ``holes (N, 3)`` (mm) as an open path from ``start (3,)`` (mm; None:
     from ``holes[0]``, drilled first), no return. Returns a ``SequenceResult`` whose ``order``
-    lists hole indices and ``length`` is in mm. ValueError naming the field at fault."""
+    lists hole indices and ``length`` is in mm. ``FieldError`` naming the field at fault."""
     seq = make_sequencer(algorithm, params)
     problem = SequencingProblem.from_holes(holes, start)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)

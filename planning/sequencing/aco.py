@@ -21,6 +21,7 @@ from .base import (
     IterativeSequencer,
     SequencingProblem,
     Tracker,
+    bad_param,
     nearest_neighbour,
 )
 
@@ -42,16 +43,16 @@ class ACO(IterativeSequencer):
 
     def __post_init__(self) -> None:
         if self.ants < 1:
-            raise ValueError("params.ants: must be >= 1")
+            raise bad_param("ants", "must be >= 1")
         if not 0.0 < self.rho <= 1.0:
-            raise ValueError(f"params.rho: must be in (0, 1], got {self.rho}")
+            raise bad_param("rho", f"must be in (0, 1], got {self.rho}")
         for name in ("alpha", "beta"):
             if getattr(self, name) < 0:
-                raise ValueError(f"params.{name}: must be >= 0")
+                raise bad_param(name, "must be >= 0")
         if not self.q > 0:
-            raise ValueError("params.q: must be positive")
+            raise bad_param("q", "must be positive")
         if self.iterations < 1:
-            raise ValueError("params.iterations: must be >= 1")
+            raise bad_param("iterations", "must be >= 1")
 
     def _body(self, problem: SequencingProblem, rng: np.random.Generator, tr: Tracker) -> str:
         n, m = problem.n, self.ants

@@ -27,6 +27,7 @@ from .base import (
     IterativeSequencer,
     SequencingProblem,
     Tracker,
+    bad_param,
 )
 
 __all__ = ["AGA", "order_crossover"]
@@ -47,17 +48,17 @@ class AGA(IterativeSequencer):
 
     def __post_init__(self) -> None:
         if self.population < 2 or self.population % 2:
-            raise ValueError("params.population: must be an even number >= 2")
+            raise bad_param("population", "must be an even number >= 2")
         for name in ("crossover", "mutation", "crossover_min", "mutation_min"):
             v = getattr(self, name)
             if not 0.0 <= v <= 1.0:
-                raise ValueError(f"params.{name}: must be in [0, 1], got {v}")
+                raise bad_param(name, f"must be in [0, 1], got {v}")
         if self.crossover_min > self.crossover:
-            raise ValueError("params.crossover_min: must not exceed crossover")
+            raise bad_param("crossover_min", "must not exceed crossover")
         if self.mutation_min > self.mutation:
-            raise ValueError("params.mutation_min: must not exceed mutation")
+            raise bad_param("mutation_min", "must not exceed mutation")
         if self.iterations < 1:
-            raise ValueError("params.iterations: must be >= 1")
+            raise bad_param("iterations", "must be >= 1")
 
     def _adaptive(self, f: np.ndarray, f_avg: float, f_max: float, hi: float,
                   lo: float) -> np.ndarray:

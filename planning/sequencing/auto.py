@@ -32,6 +32,7 @@ from .base import (
     SequenceResult,
     SequencingProblem,
     Tracker,
+    bad_param,
     double_bridge,
     held_karp,
     local_search,
@@ -55,12 +56,12 @@ class Auto:
 
     def __post_init__(self) -> None:
         if not 0 <= self.exact_max <= EXACT_MAX:
-            raise ValueError(f"params.exact_max: must be in [0, {EXACT_MAX}]")
+            raise bad_param("exact_max", f"must be in [0, {EXACT_MAX}]")
         for name in ("kicks", "stall", "kick_segment", "threshold"):
             if getattr(self, name) < 0:
-                raise ValueError(f"params.{name}: must be >= 0")
+                raise bad_param(name, "must be >= 0")
         if self.restarts < 1:
-            raise ValueError("params.restarts: must be >= 1")
+            raise bad_param("restarts", "must be >= 1")
 
     def solve(self, problem: SequencingProblem, rng: np.random.Generator, *,
               progress: ProgressFn | None = None,

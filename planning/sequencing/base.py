@@ -30,9 +30,12 @@ from functools import cached_property, lru_cache
 import numpy as np
 from scipy.spatial import cKDTree
 
+from kinematics.errors import FieldError, loc_from_path
+
 from ..optimisers.base import BudgetExhausted, ProgressFn
 
 __all__ = [
+    "bad_param",
     "DUPLICATE_TOL",
     "MAX_HOLES",
     "EXACT_MAX",
@@ -63,41 +66,47 @@ IMPROVE_EPS = 1e-9
 FULL_SCAN_MAX = 120
 
 
+def bad_param(name: str, message: str) -> FieldError:
+    """A sequencer parameter out of range: ``FieldError`` at ``params.<name>``."""
+    return FieldError(("params", name), f"params.{name}: {message}")
+
+
 def check_holes(holes, name: str = "holes", *, min_count: int = 2,
                 labels: list[str] | None = None) -> np.ndarray:
     """Validate a hole list: ``(N, 3)`` finite numbers (mm), at least ``min_count`` holes,
     no two within ``DUPLICATE_TOL`` of each other. Returns it as float64 ``(N, 3)``.
 
-    Raises ``ValueError`` naming the field and the hole at fault, e.g.
+    Raises ``FieldError`` naming the field and the hole at fault, e.g. ``("holes", 7)``:
     ``"holes[7]: duplicate of holes[2] ..."`` (``labels[k]`` instead of ``holes[k]`` when
-    given, e.g. ``"holes.left[3]"``).
+    given, e.g. ``"holes.left[3]"``; ``name`` and the labels are field paths).
     """
     def label(k: int) -> str:
         return labels[k] if labels is not None else f"{name}[{k}]"
 
+    def bad(path: str, message: str) -> FieldError:
+        return FieldError(loc_from_path(path), f"{path}: {message}")
+
     try:
         P = np.array(holes, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"{name}: must be a list of [x, y, z] in mm") from None
+        raise bad(name, "must be a list of [x, y, z] in mm") from None
     if P.ndim == 1 and P.size == 0:
         P = P.reshape(0, 3)
     if P.ndim != 2 or P.shape[1] != 3:
-        raise ValueError(f"{name}: must have shape (N, 3), got {list(P.shape)}")
-    bad = ~np.all(np.isfinite(P), axis=1)
-    if bad.any():
-        raise ValueError(f"{label(int(np.argmax(bad)))}: has a NaN or infinite coordinate")
+        raise bad(name, f"must have shape (N, 3), got {list(P.shape)}")
+    nonfinite = ~np.all(np.isfinite(P), axis=1)
+    if nonfinite.any():
+        raise bad(label(int(np.argmax(nonfinite))), "has a NaN or infinite coordinate")
     if len(P) < min_count:
-        raise ValueError(f"{name}: need at least {min_count} holes, got {len(P)}")
+        raise bad(name, f"need at least {min_count} holes, got {len(P)}")
     if len(P) > MAX_HOLES:
-        raise ValueError(f"{name}: at most {MAX_HOLES} holes, got {len(P)}")
+        raise bad(name, f"at most {MAX_HOLES} holes, got {len(P)}")
     pairs = cKDTree(P).query_pairs(DUPLICATE_TOL, output_type="ndarray") if len(P) else []
     if len(pairs):
         pairs = np.sort(pairs, axis=1)
         i, j = pairs[np.lexsort((pairs[:, 0], pairs[:, 1]))][0]
-        raise ValueError(
-            f"{label(j)}: duplicate of {label(i)} (within {DUPLICATE_TOL:g} mm: "
-            f"{P[j].round(3).tolist()})"
-        )
+        raise bad(label(j), f"duplicate of {label(i)} (within {DUPLICATE_TOL:g} mm: "
+                  f"{P[j].round(3).tolist()})")
     return P
 
 
@@ -120,7 +129,7 @@ class SequencingProblem:
     @classmethod
     def from_holes(cls, holes, start=None) -> SequencingProblem:
         """Validate ``holes (N, 3)`` and the optional ``start (3,)`` (mm) and build the
-        distance tables. ValueError naming ``holes`` or ``start``."""
+        distance tables. ``FieldError`` naming ``holes`` or ``start``."""
         P = check_holes(holes)
         if start is None:
             s = P[0].copy()
@@ -129,9 +138,9 @@ class SequencingProblem:
             try:
                 s = np.array(start, dtype=float).reshape(-1)
             except (TypeError, ValueError):
-                raise ValueError("start: must be [x, y, z] in mm") from None
+                raise FieldError("start", "start: must be [x, y, z] in mm") from None
             if s.shape != (3,) or not np.all(np.isfinite(s)):
-                raise ValueError("start: must be 3 finite numbers [x, y, z] in mm")
+                raise FieldError("start", "start: must be 3 finite numbers [x, y, z] in mm")
             free = np.arange(len(P))
         Q = P[free]
         D = np.linalg.norm(Q[:, None, :] - Q[None, :, :], axis=-1)
@@ -182,14 +191,14 @@ class SequencingProblem:
 
     def free_order(self, hole_order) -> np.ndarray:
         """Inverse of ``hole_order``: hole indices ``(N,)`` -> free-node order ``(n,)``.
-        ValueError if it is not a permutation of the holes (with hole 0 first when the start
-        is hole 0)."""
+        ``FieldError`` naming ``order`` if it is not a permutation of the holes (with hole 0
+        first when the start is hole 0)."""
         h = np.asarray(hole_order, dtype=int).reshape(-1)
         if sorted(h.tolist()) != list(range(len(self.holes))):
-            raise ValueError("order: must be a permutation of the hole indices")
+            raise FieldError("order", "order: must be a permutation of the hole indices")
         if self.start_hole:
             if h[0] != 0:
-                raise ValueError("order: must start with hole 0 (the start)")
+                raise FieldError("order", "order: must start with hole 0 (the start)")
             h = h[1:]
         inv = np.empty(len(self.holes), dtype=int)
         inv[self.free] = np.arange(self.n)
@@ -290,7 +299,7 @@ def held_karp(problem: SequencingProblem) -> tuple[np.ndarray, float]:
     """
     n = problem.n
     if n > EXACT_MAX:
-        raise ValueError(f"holes: the exact solver takes at most {EXACT_MAX + 1} holes")
+        raise FieldError("holes", f"holes: the exact solver takes at most {EXACT_MAX + 1} holes")
     if n == 0:
         return np.zeros(0, dtype=int), 0.0
     full = (1 << n) - 1
@@ -325,7 +334,7 @@ def held_karp(problem: SequencingProblem) -> tuple[np.ndarray, float]:
 def brute_force(problem: SequencingProblem) -> tuple[np.ndarray, float]:
     """Every permutation (for tests on tiny problems, n <= 8)."""
     if problem.n > 8:
-        raise ValueError("holes: brute force takes at most 8 free holes")
+        raise FieldError("holes", "holes: brute force takes at most 8 free holes")
     perms = np.array(list(itertools.permutations(range(problem.n))), dtype=int).reshape(
         -1, problem.n)
     L = problem.lengths(perms)

@@ -40,6 +40,7 @@ from .base import (
     IterativeSequencer,
     SequencingProblem,
     Tracker,
+    bad_param,
 )
 
 __all__ = ["IGA", "greedy_crossover", "ruin_and_recreate"]
@@ -68,24 +69,24 @@ class IGA(IterativeSequencer):
 
     def __post_init__(self) -> None:
         if self.population < 2 or self.population % 2:
-            raise ValueError("params.population: must be an even number >= 2")
+            raise bad_param("population", "must be an even number >= 2")
         for name in ("crossover", "mutation", "p_swap", "p_reverse", "p_insert",
                      "destroy_fraction"):
             v = getattr(self, name)
             if not 0.0 <= v <= 1.0:
-                raise ValueError(f"params.{name}: must be in [0, 1], got {v}")
+                raise bad_param(name, f"must be in [0, 1], got {v}")
         if abs(self.p_swap + self.p_reverse + self.p_insert - 1.0) > 1e-9:
-            raise ValueError("params.p_swap: p_swap + p_reverse + p_insert must be 1")
+            raise bad_param("p_swap", "p_swap + p_reverse + p_insert must be 1")
         if not 0.0 < self.cooling <= 1.0:
-            raise ValueError(f"params.cooling: must be in (0, 1], got {self.cooling}")
+            raise bad_param("cooling", f"must be in (0, 1], got {self.cooling}")
         if self.iterations < 1:
-            raise ValueError("params.iterations: must be >= 1")
+            raise bad_param("iterations", "must be >= 1")
         if not 1 <= self.tournament <= self.population:
-            raise ValueError("params.tournament: must be between 1 and the population")
+            raise bad_param("tournament", "must be between 1 and the population")
         if self.removal not in ("random", "related", "mixed"):
-            raise ValueError("params.removal: must be 'random', 'related' or 'mixed'")
+            raise bad_param("removal", "must be 'random', 'related' or 'mixed'")
         if self.initial_temperature is not None and not self.initial_temperature > 0:
-            raise ValueError("params.initial_temperature: must be positive")
+            raise bad_param("initial_temperature", "must be positive")
 
     def _body(self, problem: SequencingProblem, rng: np.random.Generator,
               tr: Tracker) -> str:

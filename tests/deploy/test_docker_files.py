@@ -1,15 +1,19 @@
 """The Docker image and the compose stack, checked without a Docker engine.
 
 Static checks read the Dockerfile (a line parser with ``\\`` continuations), docker-compose.yml
-(PyYAML) and .dockerignore. Then the image is emulated on this machine: the files the
-Dockerfile COPYs go into a build directory (minus what .dockerignore drops), its
-``pip install`` lines run there in a fresh virtualenv and install from the package index as a
-real build does, and its entry point starts (loopback, free ports, a temp data dir) until
-GET /health answers and the HEALTHCHECK command itself exits 0. Last, the compose
-stack runs from the same virtualenv: the scheduler and a worker with the services' own
-commands (ports moved to free ones) and the API with the api service's environment; a job
-must run on the worker, which proves the workers import the installed packages, and the
-viewer must ask for the key the api service is given.
+(PyYAML) and .dockerignore. The build context is assembled on this machine, with no network:
+the files the Dockerfile COPYs go into a build directory (minus what .dockerignore drops),
+which must hold everything ``pip install`` packs from it (pyproject.toml, its readme, every
+module of the packages pyproject.toml includes, every package-data file).
+
+The unit suite stops there. With ``KINOPLAN_DEPLOY_TESTS=1`` the image is also emulated: its
+``pip install`` lines run in that directory in a fresh virtualenv and install from the
+package index as a real build does (network, minutes), and its entry point starts (loopback,
+free ports, a temp data dir) until GET /health answers and the HEALTHCHECK command itself
+exits 0. Last, the compose stack runs from the same virtualenv: the scheduler and a worker
+with the services' own commands (ports moved to free ones) and the API with the api
+service's environment; a job must run on the worker, which proves the workers import the
+installed packages, and the viewer must ask for the key the api service is given.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ import socket
 import subprocess
 import sys
 import time
+import tomllib
 import urllib.error
 import urllib.request
 from pathlib import Path
@@ -43,6 +48,10 @@ DOCKERIGNORE = ROOT / ".dockerignore"
 IMAGE_SOURCES = {"pyproject.toml", "README.md", "app", "kinematics", "planning", "web"}
 START_TIMEOUT_S = 60
 PIP_TIMEOUT_S = 900
+#: The image's install runs only when asked: it downloads the dependencies.
+DEPLOY_TESTS = os.environ.get("KINOPLAN_DEPLOY_TESTS") == "1"
+needs_index = pytest.mark.skipif(
+    not DEPLOY_TESTS, reason="installs from the package index; set KINOPLAN_DEPLOY_TESTS=1")
 
 
 # ---- Dockerfile --------------------------------------------------------------------------
@@ -373,6 +382,21 @@ class Image:
                 dst.parent.mkdir(parents=True, exist_ok=True)
                 shutil.copy2(src_path, dst)
 
+    def assemble(self) -> Path:
+        """The Dockerfile's WORKDIR, ENV and COPY steps up to its first ``pip install``; the
+        directory that install runs in (no network needed)."""
+        for kind, args in self.instructions:
+            if kind == "WORKDIR":
+                self.workdir = self.path(args)
+                self.workdir.mkdir(parents=True, exist_ok=True)
+            elif kind == "ENV":
+                self.env.update(env_pairs(args))
+            elif kind == "COPY":
+                self.copy(args)
+            elif kind == "RUN" and "pip install" in args:
+                return self.workdir
+        raise AssertionError("the Dockerfile installs nothing")
+
     def build(self) -> None:
         subprocess.run([sys.executable, "-m", "venv", str(self.venv)], check=True, timeout=120)
         for kind, args in self.instructions:
@@ -391,6 +415,42 @@ class Image:
                 assert done.returncode == 0, f"{args}\n{done.stdout[-3000:]}{done.stderr[-3000:]}"
 
 
+def package_dirs(root: Path, include: list[str]) -> list[str]:
+    """Top-level folders of ``root`` that pyproject's ``packages.find`` ``include`` patterns
+    pick (``app*`` picks ``app`` and everything below it)."""
+    return sorted(d.name for d in root.iterdir()
+                  if d.is_dir() and any(fnmatch.fnmatchcase(d.name, p) for p in include))
+
+
+def test_build_context_holds_what_the_install_packs(dockerfile, tmp_path):
+    """No network: the directory the Dockerfile's ``pip install`` runs in holds
+    pyproject.toml and its readme, every module of the packages pyproject.toml includes and
+    every package-data file, as in the source tree (what .dockerignore drops aside)."""
+    context = Image(tmp_path, dockerfile).assemble()
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert (context / "pyproject.toml").read_text() == (ROOT / "pyproject.toml").read_text()
+    assert (context / project["project"]["readme"]).is_file()
+    setuptools_cfg = project["tool"]["setuptools"]
+    include = setuptools_cfg["packages"]["find"]["include"]
+    packages = package_dirs(ROOT, include)
+    assert {"app", "kinematics", "planning", "web"} <= set(packages)
+    assert package_dirs(context, include) == packages
+    patterns = ignore_patterns()
+    for package in packages:
+        modules = {p.relative_to(ROOT).as_posix() for p in (ROOT / package).rglob("*.py")}
+        modules = {m for m in modules if not ignored(m, patterns)}
+        copied = {p.relative_to(context).as_posix() for p in (context / package).rglob("*.py")}
+        assert copied == modules, package
+    for package, globs in setuptools_cfg["package-data"].items():
+        for pattern in globs:
+            files = sorted((ROOT / package.replace(".", "/")).glob(pattern))
+            assert files, f"package-data {package}: {pattern} matches nothing"
+            for f in files:
+                rel = f.relative_to(ROOT).as_posix()
+                assert not ignored(rel, patterns), f"{rel} is package data but .dockerignored"
+                assert (context / rel).read_bytes() == f.read_bytes(), rel
+
+
 @pytest.fixture(scope="module")
 def image(tmp_path_factory, dockerfile) -> Image:
     built = Image(tmp_path_factory.mktemp("image"), dockerfile)
@@ -398,6 +458,7 @@ def image(tmp_path_factory, dockerfile) -> Image:
     return built
 
 
+@needs_index
 def test_image_installs_starts_and_passes_its_healthcheck(image, dockerfile, tmp_path):
     assert not (image.workdir / "app").exists(), "runs from the installed package"
     site = next((image.venv / "lib").glob("python3*/site-packages"))
@@ -424,6 +485,7 @@ def test_image_installs_starts_and_passes_its_healthcheck(image, dockerfile, tmp
     assert (tmp_path / "data").is_dir()
 
 
+@needs_index
 def test_compose_stack_runs_a_job_on_a_worker(image, compose, dockerfile, tmp_path):
     services = compose["services"]
     sched_port, dash_port, worker_dash, api_port, viewer_port = (free_port() for _ in range(5))

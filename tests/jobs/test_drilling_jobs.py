@@ -8,15 +8,7 @@ import json
 import numpy as np
 import pytest
 
-import app.jobs.drilling_kinds  # noqa: F401 - registers the kinds in this process
-import app.jobs.kinds as kinds
-import app.jobs.local as local
-
 from .conftest import wait_for
-
-# A worker process imports this module to find ``_child_main_with_drilling``: everything
-# heavy (the app, the test client) is imported inside the functions that need it.
-_CHILD_MAIN = local._child_main
 
 FACE = [[9000, 0, 0], [9000, 1200, 300], [9000, -800, 900], [9000, 400, 2000],
         [9000, -1500, 2500], [9000, 2000, 1500]]
@@ -25,23 +17,13 @@ SIDES = {"left": [[9000, 2600, 300], [9000, 3400, 1500]],
          "right": [[9000, -2600, 500], [9000, -3500, 2000]]}
 
 
-def _child_main_with_drilling(conn, kind, payload):
-    """Worker body with the drilling kinds registered (importing this module did it): the
-    forkserver's workers only import what ``KIND_MODULES`` listed when it started."""
-    _CHILD_MAIN(conn, kind, payload)
-
-
 @pytest.fixture
-def client(tmp_path, monkeypatch):
+def client(tmp_path):
     from fastapi.testclient import TestClient
 
     from app.config import Settings
     from app.main import create_app
 
-    if "app.jobs.drilling_kinds" not in kinds.KIND_MODULES:
-        monkeypatch.setattr(kinds, "KIND_MODULES",
-                            [*kinds.KIND_MODULES, "app.jobs.drilling_kinds"])
-        monkeypatch.setattr(local, "_child_main", _child_main_with_drilling)
     with TestClient(create_app(Settings(no_viewer=True, data_dir=tmp_path))) as c:
         yield c
 

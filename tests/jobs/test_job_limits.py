@@ -3,6 +3,7 @@ the per-job time limit, and the paginated job list."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import sqlite3
 import time
@@ -15,7 +16,8 @@ from fastapi.testclient import TestClient
 from app.config import Settings
 from app.jobs import planner_params
 from app.jobs.caps import MAX_PARAMS_BYTES, MAX_PARAMS_DEPTH, check_params
-from app.jobs.kinds import KINDS, JobKind, Params
+from app.jobs.catalog import KINDS
+from app.jobs.kinds import Params
 from app.jobs.tracking_kinds import MAX_STEPS, MAX_TUNING_WORK
 from app.main import create_app
 from app.store import _MIGRATIONS, Store
@@ -228,7 +230,7 @@ def test_params_over_the_size_cap_are_413_before_validation(client, monkeypatch)
         def model_validate(cls, *args, **kwargs):
             raise AssertionError("validated an oversized submission")
 
-    monkeypatch.setitem(KINDS, "echo", JobKind("echo", Exploding, KINDS["echo"].run, "x"))
+    monkeypatch.setitem(KINDS, "echo", dataclasses.replace(KINDS["echo"], params=Exploding))
     err = error(post(client, "echo", {"value": "x" * 2_000_000}), 413)
     assert err["loc"] == ["body", "params"] and err["type"] == "too_large"
     assert f"{MAX_PARAMS_BYTES:,}" in err["msg"]

@@ -9,6 +9,7 @@ import threading
 import time
 
 import httpx
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
@@ -51,15 +52,51 @@ def test_result_is_409_until_succeeded(jobs_client):
     assert jobs_client.get(f"/jobs/{job_id}/result").status_code == 200
 
 
-def test_workspace_job_matches_the_direct_call(jobs_client):
-    job_id = submit(jobs_client, "workspace", robot="pile_driver", samples=30000, seed=0,
+#: The pile driver's joint limits (paper 000, Table 1), rad.
+PILE_DRIVER_LIMITS = np.array([(-np.pi, np.pi), (0, np.pi / 3), (-np.pi / 3, 0),
+                               (-np.pi / 3, 0), (-np.pi / 6, np.pi / 6), (-np.pi, np.pi)])
+
+
+def pile_driver_tool_points(q: np.ndarray) -> np.ndarray:
+    """The pile driver's tool point ``(N, 3)`` mm in closed form, not through kinematics.fk:
+    the swing turns a vertical plane in which the boom (pivot 200 mm out), stick and
+    attachment (800, 600, 300 mm) form a planar chain whose tip sits 100 mm off its last
+    link, at a right angle; the tilt and rotator do not move the point."""
+    swing, boom, stick, four_bar = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    a3, a4 = boom + stick, boom + stick + four_bar
+    out = 200 + 800 * np.cos(boom) + 600 * np.cos(a3) + 300 * np.cos(a4) - 100 * np.sin(a4)
+    up = 800 * np.sin(boom) + 600 * np.sin(a3) + 300 * np.sin(a4) + 100 * np.cos(a4)
+    return np.c_[out * np.cos(swing), out * np.sin(swing), up]
+
+
+def test_workspace_job_reports_the_seeded_monte_carlo(jobs_client):
+    """The job's report, against the Monte Carlo redone here: 30,000 configurations drawn
+    with ``default_rng(seed).uniform`` within Table 1's limits, tool points in closed form,
+    and the 100 points returned drawn with ``default_rng(seed).choice`` in sampling order."""
+    samples, seed = 30000, 3
+    job_id = submit(jobs_client, "workspace", robot="pile_driver", samples=samples, seed=seed,
                     return_points=100)
     assert wait_for(jobs_client, job_id)["status"] == "succeeded"
     result = jobs_client.get(f"/jobs/{job_id}/result").json()
-    direct = jobs_client.post("/robots/pile_driver/workspace",
-                              json={"samples": 30000, "seed": 0, "return_points": 100}).json()
-    for key in ("min", "max", "radial", "vertical", "volume", "points", "projections"):
-        assert result[key] == direct[key], key
+    lower, upper = PILE_DRIVER_LIMITS.T
+    P = pile_driver_tool_points(np.random.default_rng(seed).uniform(lower, upper, (samples, 6)))
+    assert result["samples"] == samples and result["seed"] == seed
+    np.testing.assert_allclose(result["min"], P.min(axis=0), atol=1e-9)
+    np.testing.assert_allclose(result["max"], P.max(axis=0), atol=1e-9)
+    radial = np.hypot(P[:, 0], P[:, 1])  # the base frame is the world frame here
+    np.testing.assert_allclose(result["radial"], [radial.min(), radial.max()], atol=1e-9)
+    np.testing.assert_allclose(result["vertical"], [P[:, 2].min(), P[:, 2].max()], atol=1e-9)
+    picked = np.sort(np.random.default_rng(seed).choice(samples, size=100, replace=False))
+    np.testing.assert_allclose(result["points"], P[picked], atol=1e-9)
+    # The reach: 1600 mm of boom and stick plus the attachment's sqrt(300² + 100²) = 316 mm.
+    assert 1900 < radial.max() <= 1600 + np.hypot(300, 100)
+    # Volume: voxels of a 30th of the largest extent that hold a sample.
+    voxel = float(np.max(P.max(axis=0) - P.min(axis=0))) / 30
+    cells = {tuple(c) for c in np.floor((P - P.min(axis=0)) / voxel).astype(int)}
+    assert result["voxel"] == pytest.approx(voxel, rel=1e-12)
+    assert result["volume"] == pytest.approx(len(cells) * voxel**3, rel=1e-2)
+    for name in ("xy", "xz", "yz"):
+        assert np.sum(result["projections"][name]["counts"]) == samples, name
 
 
 def test_a_job_that_raises_fails_with_its_error(jobs_client):

@@ -5,14 +5,6 @@ from __future__ import annotations
 
 import pytest
 
-import app.jobs.kinds as kinds
-import app.jobs.local as local
-import app.jobs.path_kinds  # noqa: F401 - registers the kinds in this process
-
-# A worker process imports this module to find ``_child_main_with_paths``: everything heavy
-# (the app, the test client) is imported inside the functions that need it.
-_CHILD_MAIN = local._child_main
-
 SCENE = {"bounds": [[0, 0, 0], [100, 100, 100]],
          "obstacles": [{"center": [30, 30, 30], "radius": 12},
                        {"center": [55, 50, 55], "radius": 12},
@@ -20,22 +12,13 @@ SCENE = {"bounds": [[0, 0, 0], [100, 100, 100]],
 START, GOAL = [1, 1, 1], [100, 100, 100]
 
 
-def _child_main_with_paths(conn, kind, payload):
-    """Worker body with the path kinds registered (importing this module did it): until
-    KIND_MODULES lists them, the forkserver's workers do not import them."""
-    _CHILD_MAIN(conn, kind, payload)
-
-
 @pytest.fixture
-def client(tmp_path, monkeypatch):
+def client(tmp_path):
     from fastapi.testclient import TestClient
 
     from app.config import Settings
     from app.main import create_app
 
-    if "app.jobs.path_kinds" not in kinds.KIND_MODULES:
-        monkeypatch.setattr(kinds, "KIND_MODULES", [*kinds.KIND_MODULES, "app.jobs.path_kinds"])
-        monkeypatch.setattr(local, "_child_main", _child_main_with_paths)
     with TestClient(create_app(Settings(no_viewer=True, data_dir=tmp_path, workers=2))) as c:
         yield c
 

@@ -1,5 +1,5 @@
-"""The ``tracking`` job kind: validation through the API (422s), the job function itself, and
-a tuned run through the job pool once the kind's module is in ``KIND_MODULES``."""
+"""The ``tracking`` job kind: validation through the API (422s), the job function itself, a
+tuned run through the job pool, and its plot."""
 
 from __future__ import annotations
 
@@ -9,28 +9,19 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-import app.jobs.kinds
-import app.jobs.tracking_kinds  # noqa: F401 - registers the kind in this process
 from app.config import Settings
-from app.jobs.tracking_kinds import MAX_RUNS, run_tracking
+from app.jobs.tracking_kinds import MAX_RUNS, TrackingParams, run_tracking
 from app.main import create_app
 from kinematics.fk import fk
 from kinematics.library import builtin_model
 
 from .conftest import wait_for
 
-#: Whether worker processes import the kind. The local backend's workers fork from a
-#: forkserver that imported ``app.jobs.kinds`` at its start, so patching ``KIND_MODULES``
-#: in the test process does not reach them: only the shipped list counts.
-REGISTERED_FOR_WORKERS = "app.jobs.tracking_kinds" in app.jobs.kinds.KIND_MODULES
-
 LINE = {"kind": "line", "length": 100.0, "duration": 5.0}
 
 
 @pytest.fixture
-def client(tmp_path, monkeypatch):
-    monkeypatch.setattr(app.jobs.kinds, "KIND_MODULES",
-                        [*app.jobs.kinds.KIND_MODULES, "app.jobs.tracking_kinds"])
+def client(tmp_path):
     with TestClient(create_app(Settings(no_viewer=True, data_dir=tmp_path, workers=1))) as c:
         yield c
 
@@ -67,15 +58,12 @@ def test_unknown_robot_is_404(client):
 
 
 def test_job_function_default_and_tuned_pi():
-    model = builtin_model("hyper_redundant_9dof").to_dict()
     base = {"robot": "hyper_redundant_9dof", "task": {**LINE, "direction": [0.48, 0.6, -0.64]},
-            "bounds": {"kp": [0.5, 20.0], "ki": [0.0, 400.0]}, "iterations": 2, "seed": 0,
-            "dt": 0.1, "q0": None, "_model": model}
+            "iterations": 2}
     seen: list[float] = []
-    default = run_tracking({**base, "controller": {"kind": "default", "kp": None, "ki": None},
-                            "tune": None, "runs": 1}, lambda f, m: None)
-    tuned = run_tracking({**base, "controller": {"kind": "pi", "kp": None, "ki": None},
-                          "tune": "gwo", "runs": 2}, lambda f, m: seen.append(f))
+    default = run_tracking(TrackingParams(**base), lambda f, m: None).model_dump()
+    tuned = run_tracking(TrackingParams(**base, controller={"kind": "pi"}, tune="gwo", runs=2),
+                         lambda f, m: seen.append(f)).model_dump()
     for out in (default, tuned):
         assert len(out["q"]) == len(out["errors"]) == 51 and len(out["q"][0]) == 9
         assert out["joint_speed_max"] <= 0.1 + 1e-12
@@ -94,9 +82,6 @@ def test_job_function_default_and_tuned_pi():
     assert seen == sorted(seen) and seen[-1] == 1.0
 
 
-@pytest.mark.skipif(not REGISTERED_FOR_WORKERS,
-                    reason="app.jobs.tracking_kinds is not yet in app.jobs.kinds.KIND_MODULES, "
-                    "so the job pool's workers cannot run the kind")
 def test_a_tuned_run_through_the_job_pool(client):
     r = submit(client, task=LINE, controller={"kind": "pi"}, tune="hgso", iterations=2,
                runs=2, seed=3)
@@ -119,7 +104,6 @@ def _png_shape(content: bytes) -> tuple[int, ...]:
     return imread(io.BytesIO(content), format="png").shape
 
 
-@pytest.mark.skipif(not REGISTERED_FOR_WORKERS, reason="the kind is not shipped to workers")
 def test_plot_of_a_tracking_job_even_after_its_robot_is_deleted(client):
     data = builtin_model("hyper_redundant_9dof").to_dict()
     data["id"] = "snake_copy"

@@ -75,8 +75,10 @@ def test_batched_fk_equals_single_pose_path(model):
 def test_fk_rejects_wrong_shape(model):
     with pytest.raises(ValueError, match=str(model.dof)):
         fk(model, np.zeros(model.dof + 1))
+    with pytest.raises(ValueError, match=str(model.dof)):
+        fk(model, np.zeros((2, 3, model.dof + 1)))
     with pytest.raises(ValueError):
-        fk(model, np.zeros((2, 3, model.dof)))
+        fk(model, 0.0)
 
 
 def _hand_chain(model: RobotModel, q: np.ndarray) -> np.ndarray:
@@ -154,23 +156,63 @@ def test_batched_jacobian_equals_single(model):
         np.testing.assert_allclose(JB[k], jacobian(model, Q[k]), atol=1e-12)
 
 
-@settings(max_examples=40, deadline=None)
+def _reference_pose(model: RobotModel, q: np.ndarray) -> np.ndarray:
+    """One tool pose from elementary transforms or matrix exponentials (not fk.py)."""
+    if model.convention != "poe":
+        return _hand_chain(model, q)
+    T = model.base.copy()
+    for j, v in zip(model.joints, q):
+        T = T @ expm(_twist_matrix(j.axis, j.point or (0, 0, 0), j.revolute) * (v + j.offset))
+    return T @ model.home @ model.tool
+
+
+#: Leading batch shape of the property test: two groups of three configurations.
+BATCH = (2, 3)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True, database=None)
 @given(
     st.sampled_from(MODELS),
-    st.lists(st.floats(0.0, 1.0), min_size=9, max_size=9),
-    st.sampled_from([(), (1,), (3, 1, 2)]),
+    st.lists(st.floats(0.0, 1.0), min_size=6 * 9, max_size=6 * 9),
 )
-def test_fk_batch_shapes_property(model, u, shape):
-    """Any leading batch shape flattened to (N, dof) gives the same poses row by row."""
-    q = model.lower + np.array(u[: model.dof]) * (model.upper - model.lower)
-    Q = np.broadcast_to(q, shape + (model.dof,)).reshape(-1, model.dof)
+def test_fk_leading_batch_dims_property(model, u):
+    """``(2, 3, dof) -> (2, 3, 4, 4)`` (frames ``(2, 3, dof + 1, 4, 4)``, Jacobians
+    ``(2, 3, 6, dof)``), entry by entry equal to one call per configuration and to the chain
+    multiplied out by hand. Row k draws every joint from its own sixth of the joint range,
+    so no two of the six configurations are alike."""
+    n = BATCH[0] * BATCH[1]
+    frac = (np.arange(n)[:, None] + np.array(u).reshape(n, 9)[:, : model.dof]) / n
+    Q = (model.lower + frac * (model.upper - model.lower)).reshape(BATCH + (model.dof,))
+    assert len({tuple(row) for row in Q.reshape(n, model.dof)}) == n
     T = fk(model, Q)
-    assert T.shape == (Q.shape[0], 4, 4)
-    np.testing.assert_allclose(T, np.broadcast_to(fk(model, q), T.shape), atol=1e-12)
+    F = fk_frames(model, Q)
+    J = jacobian(model, Q)
+    assert T.shape == BATCH + (4, 4)
+    assert F.shape == BATCH + (model.dof + 1, 4, 4)
+    assert J.shape == BATCH + (6, model.dof)
+    for i in range(BATCH[0]):
+        for k in range(BATCH[1]):
+            np.testing.assert_allclose(T[i, k], fk(model, Q[i, k]), atol=1e-9)
+            np.testing.assert_allclose(T[i, k], _reference_pose(model, Q[i, k]), atol=1e-8)
+            np.testing.assert_allclose(F[i, k], fk_frames(model, Q[i, k]), atol=1e-9)
+            np.testing.assert_allclose(J[i, k], jacobian(model, Q[i, k]), atol=1e-9)
+    # The poses differ from row to row, so a mix-up of rows would show.
+    flat = T.reshape(n, 4, 4)
+    assert min(np.abs(flat[a] - flat[b]).max() for a in range(n) for b in range(a)) > 1e-6
     # Every pose is rigid.
-    R = T[:, :3, :3]
-    np.testing.assert_allclose(R @ np.swapaxes(R, 1, 2), np.broadcast_to(np.eye(3), R.shape),
+    R = T[..., :3, :3]
+    np.testing.assert_allclose(R @ np.swapaxes(R, -1, -2), np.broadcast_to(np.eye(3), R.shape),
                                atol=1e-12)
+
+
+@pytest.mark.parametrize("model", MODELS, ids=IDS)
+def test_fk_accepts_any_leading_shape(model):
+    q = random_q(model, 1, seed=9)[0]
+    assert fk(model, q).shape == (4, 4)
+    assert fk(model, q[None, None, None]).shape == (1, 1, 1, 4, 4)
+    assert fk(model, np.zeros((0, model.dof))).shape == (0, 4, 4)
+    assert fk(model, np.zeros((2, 0, model.dof))).shape == (2, 0, 4, 4)
+    np.testing.assert_allclose(fk(model, q[None, None])[0, 0], fk(model, q), atol=1e-12)
 
 
 def test_dexterity_at_singularity():

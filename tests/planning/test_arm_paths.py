@@ -14,10 +14,12 @@ import numpy as np
 import pytest
 
 from kinematics.cylinders import CylinderSet
+from kinematics.errors import FieldError
 from kinematics.fk import fk, fk_frames
 from kinematics.library import builtin_model
 from planning.arm_paths import REACH_TOL, arm_clearance, plan_arm_path, reach
 from planning.scene import Scene
+from planning.status import PlanStatus
 
 Q_START = np.array([-0.9, 0.5, -0.6, -0.4, 0.0, 0.0])
 Q_GOAL = np.array([0.0, 0.5, -0.6, -0.4, 0.0, 0.0])
@@ -57,6 +59,7 @@ def test_the_scene_needs_a_detour(scene, endpoints, planned):
 
 def test_every_sample_is_reached_within_limits(model, planned):
     assert planned.success, planned.message
+    assert planned.status is PlanStatus.OK and planned.to_dict()["status"] == "ok"
     assert np.all(model.within_limits(planned.q))
     reached = fk(model, planned.q)[:, :3, 3]
     assert np.max(np.linalg.norm(reached - planned.points, axis=1)) < REACH_TOL
@@ -109,12 +112,14 @@ def test_papers_goal_is_unreachable(model, endpoints):
     big = Scene.create([[-2500, -2500, -1500], [2500, 2500, 2000]], [
         {"center": [1400, 700, 500], "radius": 150}])
     res = plan_arm_path(model, big, endpoints[0], [1800, 1800, 800])
-    assert not res.success
-    assert "unreachable" in res.message and "beyond the arm's reach" in res.message
+    assert not res.success and res.status is PlanStatus.UNREACHABLE
+    out = res.to_dict()
+    assert out["status"] == "unreachable" and out["success"] is False and out["path"] == []
+    assert "beyond the arm's reach" in res.message  # why, in words: the reach it has
     assert f"{reach(model):.0f} mm" in res.message
     assert 1900 < reach(model) < 1920
     res = plan_arm_path(model, big, [500, -1000, 0], endpoints[1])
-    assert not res.success and "start" in res.message and "unreachable" in res.message
+    assert res.status is PlanStatus.UNREACHABLE and res.message.startswith("start ")
 
 
 def test_an_arm_collision_is_named(model, endpoints):
@@ -124,15 +129,37 @@ def test_an_arm_collision_is_named(model, endpoints):
     scene = Scene.create([[-2500, -2500, -1500], [2500, 2500, 2000]],
                          [{"center": boom_mid.tolist(), "radius": 80}])
     res = plan_arm_path(model, scene, *endpoints)
-    assert not res.success
-    assert "arm hits" in res.message and "obstacles[0]" in res.message and "link 2" in \
-        res.message
+    assert not res.success and res.status is PlanStatus.COLLISION
+    assert res.tool.success  # the tool path itself is clear
+    assert "obstacles[0]" in res.message and "link 2" in res.message  # which, in words
 
 
-def test_arm_inputs_are_validated(model, scene, endpoints):
-    with pytest.raises(ValueError, match="link_radius must be one number or 6"):
-        plan_arm_path(model, scene, *endpoints, link_radius=[1, 2])
-    with pytest.raises(ValueError, match="duration must be a positive number"):
-        plan_arm_path(model, scene, *endpoints, duration=0)
-    with pytest.raises(ValueError, match="q_start does not put the tool at start"):
-        plan_arm_path(model, scene, *endpoints, q_start=Q_GOAL)
+def test_a_tool_path_that_cannot_be_planned_fails_with_the_planners_status(model, endpoints):
+    # A wall across the whole scene between start (y < -800) and goal (y > -700).
+    wall = Scene.create([[-2500, -2500, -1500], [2500, 2500, 2000]], [
+        {"type": "box", "lower": [-2501, -800, -1501], "upper": [2501, -700, 2001]}])
+    res = plan_arm_path(model, wall, *endpoints, algorithm="auto")
+    assert res.status is PlanStatus.NO_PATH and res.tool.status is PlanStatus.NO_PATH
+    assert res.to_dict()["status"] == "no_path" and len(res.q) == 0
+
+
+@pytest.mark.parametrize("options, loc, words", [
+    ({"link_radius": [1, 2]}, ("link_radius",), "link_radius must be one number or 6"),
+    ({"duration": 0}, ("duration",), "duration must be a positive number"),
+    ({"q_start": Q_GOAL}, ("q_start",), "q_start does not put the tool at start"),
+    ({"keep_out_radius": -1.0}, ("keep_out_radius",),
+     "keep_out_radius must be a positive number"),
+])
+def test_arm_inputs_are_validated(model, scene, endpoints, options, loc, words):
+    with pytest.raises(FieldError) as err:
+        plan_arm_path(model, scene, *endpoints, **options)
+    assert err.value.loc == loc and words in err.value.message
+
+
+def test_an_endpoint_too_close_for_the_links_names_it(model, endpoints):
+    # Clear of the sphere for the tool point, not for the 60 mm links around it.
+    scene = Scene.create([[-2500, -2500, -1500], [2500, 2500, 2000]], [
+        {"center": (endpoints[1] + [0, 0, 250]).tolist(), "radius": 200}])
+    with pytest.raises(FieldError) as err:
+        plan_arm_path(model, scene, *endpoints)
+    assert err.value.loc == ("goal",) and "obstacles[0]" in err.value.message

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from kinematics.drilling import drill_ik
+from kinematics.errors import FieldError
 from kinematics.rigs import builtin_rig
 from planning.drilling.envelopes import (
     DRILL_ARM_RADII,
@@ -24,9 +25,11 @@ from planning.drilling.multiarm import (
     pair_distances,
     plan_face,
     plan_move,
+    smooth_path,
 )
 from planning.drilling.rrt import RRTConnect
 from planning.drilling.space import ArmSpace, Obstacles
+from planning.status import PlanStatus
 
 FACE_X = 9000.0
 #: Four holes per arm, the middle arm's reaching towards both side arms' strips.
@@ -92,10 +95,12 @@ def test_envelope_radii_are_parameters():
     env = drill_arm_envelope({"feed": 300})
     assert dict(zip(env.names, env.radii))["feed"] == 300
     assert dict(zip(env.names, env.radii))["boom"] == DRILL_ARM_RADII["boom"]
-    with pytest.raises(ValueError, match="radii.tail"):
+    with pytest.raises(FieldError, match="radii.tail") as err:
         drill_arm_envelope({"tail": 10})
-    with pytest.raises(ValueError, match="radii.boom"):
+    assert err.value.loc == ("radii", "tail")
+    with pytest.raises(FieldError, match="radii.boom") as err:
         drill_arm_envelope({"boom": -1})
+    assert err.value.loc == ("radii", "boom")
 
 
 # ---- the transfer space ----------------------------------------------------------------------
@@ -150,6 +155,7 @@ def test_planners_go_around_the_parked_middle_arm(blocked, planner):
     mv = plan_move(space, obs, qa, qb, planner, np.random.default_rng(0),
                    limits=MotionLimits(), standoff=300.0)
     assert mv.success, mv.message
+    assert mv.status is PlanStatus.OK and mv.path.status is PlanStatus.OK
     assert mv.path.min_clearance >= planner.safety - 1e-9
     np.testing.assert_allclose(mv.path.q[0], qa[:3])
     np.testing.assert_allclose(mv.path.q[-1], qb[:3])
@@ -172,18 +178,53 @@ def test_an_unreachable_goal_is_a_failure_not_a_path(blocked, rig, env):
     for planner in (IAPF(), RRTConnect(max_iterations=50)):
         mv = plan_move(space, obs, qa, q_hit, planner, np.random.default_rng(0),
                        limits=MotionLimits(), standoff=300.0)
-        assert not mv.success and "collides" in mv.message
-    with pytest.raises(ValueError, match="planner_params.lam"):
-        make_planner("iapf", {"lam": 1})
-    with pytest.raises(ValueError, match="planner"):
-        make_planner("prm")
+        assert not mv.success and mv.status is PlanStatus.COLLISION
+        assert mv.path.status is PlanStatus.COLLISION and mv.traj is None
+
+
+def test_move_planner_failures_are_told_apart_by_status(blocked):
+    space, obs, qa, qb = blocked
+    rng = np.random.default_rng(0)
+    # Out of iterations or steps before reaching the goal around the parked arm.
+    assert RRTConnect(max_iterations=1).plan(space, obs, qa[:3], qb[:3], rng).status \
+        is PlanStatus.BUDGET_SPENT
+    assert IAPF(max_steps=3).plan(space, obs, qa[:3], qb[:3], rng).status \
+        is PlanStatus.BUDGET_SPENT
+    # A goal the telescope cannot take: not a collision, an input beyond the limits.
+    q_far = qb[:3].copy()
+    q_far[2] = space.model.joints[2].upper + 1000.0
+    res = RRTConnect().plan(space, obs, qa[:3], q_far, rng)
+    assert res.status is PlanStatus.INVALID_INPUT and not res.success
+    # Smoothing a raw path straight through the parked arm, or beyond the telescope's stop.
+    line = np.linspace(qa[:3], qb[:3], 20)
+    traj, _, status, _ = smooth_path(space, line, obs, MotionLimits())
+    assert traj is None and status is PlanStatus.COLLISION
+    traj, _, status, _ = smooth_path(space, np.linspace(qa[:3], q_far, 20), Obstacles.none(),
+                                     MotionLimits())
+    assert traj is None and status is PlanStatus.OUT_OF_LIMITS
+    traj, _, status, why = smooth_path(space, np.array([qa[:3], qa[:3]]), obs, MotionLimits())
+    assert traj is None and status is PlanStatus.OK and why == "no motion"
+
+
+@pytest.mark.parametrize("name, params, loc", [
+    ("iapf", {"lam": 1}, ("planner_params", "lam")),
+    ("prm", None, ("planner",)),
+    ("iapf", {"step": 0}, ("planner_params", "step")),
+    ("iapf", {"safety": -1}, ("planner_params", "safety")),
+    ("rrt", {"max_iterations": 0}, ("planner_params", "max_iterations")),
+    ("rrt", {"shortcut": -1}, ("planner_params", "shortcut")),
+])
+def test_planner_params_name_the_field(name, params, loc):
+    with pytest.raises(FieldError) as err:
+        make_planner(name, params)
+    assert err.value.loc == loc
 
 
 # ---- whole faces -----------------------------------------------------------------------------
 def test_small_face_plan_is_collision_free(rig, small_plan, capsys):
     fp = small_plan
     assert fp.success, fp.messages
-    assert fp.total_collisions == 0
+    assert fp.status is PlanStatus.OK and fp.total_collisions == 0
     assert set(fp.min_distance) == {"left-middle", "left-right", "middle-right"}
     assert all(d.min() > 0 for d in fp.min_distance.values())
     dt = np.diff(fp.t)
@@ -225,8 +266,9 @@ def test_a_colliding_goal_makes_the_plan_fail(rig):
 
     alloc = assign_holes(rig, {"left": [[FACE_X, 3000, 1000], [FACE_X, 1000, 614]]})
     fp = plan_face(rig, None, allocation=alloc)
-    assert not fp.success
-    assert any("collides" in m for m in fp.messages), fp.messages
+    assert not fp.success and fp.status is PlanStatus.COLLISION, fp.messages
+    failed = [mv for mv in fp.arms["left"].timeline.moves if not mv.success]
+    assert failed and all(mv.status is PlanStatus.COLLISION for mv in failed)
 
 
 def test_the_final_check_sees_overlaps(rig, env):

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import math
+import pickle
 
 import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
+from kinematics.errors import FieldError
 from planning.scene import (
     Scene,
+    obstacle_from_dict,
     segment_box_distance,
     segment_point_distance,
     segment_segment_distance,
@@ -170,44 +173,80 @@ def test_surface_points_lie_at_the_offset(scene):
 
 
 # ---- validation --------------------------------------------------------------------------
-@pytest.mark.parametrize("obstacles, message", [
+@pytest.mark.parametrize("obstacles, loc, message", [
     ([{"center": [0, 0, 0], "radius": 1}, {"center": [1, 1, 1], "radius": 0}],
-     r"obstacles\[1\]\.radius must be positive"),
-    ([{"center": [0, 0, math.nan], "radius": 1}], r"obstacles\[0\]\.center has a NaN"),
-    ([{"center": [0, 0], "radius": 1}], r"obstacles\[0\]\.center must be 3 numbers"),
-    ([{"type": "box", "lower": [0, 0, 0], "upper": [1, 0, 1]}],
-     r"obstacles\[0\]\.upper must exceed"),
-    ([{"type": "capsule", "a": [0, 0, 0], "radius": 1}], r"obstacles\[0\]\.b is required"),
-    ([{"type": "cone", "center": [0, 0, 0]}], r"obstacles\[0\]\.type must be"),
-    ([{"center": [0, 0, 0], "radius": 1, "lower": [0, 0, 0]}],
+     ("obstacles", 1, "radius"), r"obstacles\[1\]\.radius must be positive"),
+    ([{"center": [0, 0, math.nan], "radius": 1}], ("obstacles", 0, "center"),
+     r"obstacles\[0\]\.center has a NaN"),
+    ([{"center": [0, 0], "radius": 1}], ("obstacles", 0, "center"),
+     r"obstacles\[0\]\.center must be 3 numbers"),
+    ([{"type": "box", "lower": [0, 0, 0], "upper": [1, 0, 1]}], ("obstacles", 0, "upper"),
+     r"obstacles\[0\]\.upper must exceed obstacles\[0\]\.lower"),
+    ([{"type": "capsule", "a": [0, 0, 0], "radius": 1}], ("obstacles", 0, "b"),
+     r"obstacles\[0\]\.b is required"),
+    ([{"type": "cone", "center": [0, 0, 0]}], ("obstacles", 0, "type"),
+     r"obstacles\[0\]\.type must be"),
+    ([{"center": [0, 0, 0], "radius": 1, "lower": [0, 0, 0]}], ("obstacles", 0, "lower"),
      r"obstacles\[0\]\.lower is not a field of a sphere"),
+    ([{"center": [0, 0, 0], "radius": 1}, "ball"], ("obstacles", 1),
+     r"obstacles\[1\] must be an object"),
 ])
-def test_invalid_obstacles_name_the_field(obstacles, message):
-    with pytest.raises(ValueError, match=message):
+def test_invalid_obstacles_name_the_field(obstacles, loc, message):
+    with pytest.raises(FieldError, match=message) as err:
         Scene.create([[-5] * 3, [5] * 3], obstacles)
+    assert err.value.loc == loc
+
+
+def test_an_obstacle_alone_names_its_own_fields():
+    with pytest.raises(FieldError) as err:
+        obstacle_from_dict({"type": "box", "lower": [0, 0, 0]})
+    assert err.value.loc == ("upper",) and err.value.message == "upper is required for a box"
 
 
 def test_invalid_bounds_and_margin():
-    with pytest.raises(ValueError, match=r"bounds\[1\] must exceed"):
+    with pytest.raises(FieldError, match=r"bounds\[1\] must exceed") as err:
         Scene.create([[0, 0, 0], [1, 0, 1]])
-    with pytest.raises(ValueError, match="bounds must be"):
+    assert err.value.loc == ("bounds", 1)
+    with pytest.raises(FieldError, match="bounds must be") as err:
         Scene.create([[0, 0, 0]])
-    with pytest.raises(ValueError, match="safety_margin must be non-negative"):
+    assert err.value.loc == ("bounds",)
+    with pytest.raises(FieldError, match="safety_margin must be non-negative") as err:
         Scene.create([[0] * 3, [1] * 3], safety_margin=-1)
-    with pytest.raises(ValueError, match="safety_margin must be finite"):
+    assert err.value.loc == ("safety_margin",)
+    with pytest.raises(FieldError, match="safety_margin must be finite"):
         Scene.create([[0] * 3, [1] * 3], safety_margin=math.nan)
+    with pytest.raises(FieldError) as err:
+        Scene.from_dict({"bounds": [[0] * 3, [1] * 3], "obstacles": {"center": [0, 0, 0]}})
+    assert err.value.loc == ("obstacles",)
 
 
-def test_endpoints_are_checked(scene):
-    with pytest.raises(ValueError, match=r"start is inside obstacles\[0\]"):
-        scene.check_endpoint([0, 0, 0.5], "start")
-    with pytest.raises(ValueError, match="goal is outside bounds"):
-        scene.check_endpoint([0, 0, 11], "goal")
-    with pytest.raises(ValueError, match=r"start is within safety_margin .* obstacles\[0\]"):
-        scene.check_endpoint([0, 0, 1.05], "start")
-    with pytest.raises(ValueError, match="goal has a NaN"):
-        scene.check_endpoint([0, math.nan, 5], "goal")
+@pytest.mark.parametrize("point, name, loc, message", [
+    ([0, 0, 0.5], "start", ("start",), r"start is inside obstacles\[0\]"),
+    ([0, 0, 11], "goal", ("goal",), "goal is outside bounds"),
+    ([0, 0, 1.05], "start", ("start",), r"start is within safety_margin .* obstacles\[0\]"),
+    ([0, math.nan, 5], "goal", ("goal",), "goal has a NaN"),
+    ([0, 0, 0.5], "tasks[3].start", ("tasks", 3, "start"), r"tasks\[3\]\.start is inside"),
+])
+def test_endpoints_are_checked(scene, point, name, loc, message):
+    with pytest.raises(FieldError, match=message) as err:
+        scene.check_endpoint(point, name)
+    assert err.value.loc == loc
+
+
+def test_a_clear_endpoint_passes(scene):
     np.testing.assert_array_equal(scene.check_endpoint([5, 5, 5], "goal"), [5, 5, 5])
+
+
+def test_field_errors_pickle_with_their_loc(scene):
+    """What a worker process raises reaches the service whole: class, loc and message."""
+    with pytest.raises(FieldError) as err:
+        scene.check_endpoint([0, 0, 0.5], "start")
+    again = pickle.loads(pickle.dumps(err.value))
+    assert type(again) is FieldError and isinstance(again, ValueError)
+    assert again.loc == ("start",) and again.message == err.value.message
+    assert str(again) == str(err.value) == "start is inside obstacles[0]"
+    one = FieldError("durations", "durations: every duration must be positive")
+    assert one.loc == ("durations",) and pickle.loads(pickle.dumps(one)).loc == ("durations",)
 
 
 def test_round_trip_through_dict(scene):

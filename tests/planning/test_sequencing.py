@@ -4,7 +4,6 @@ dynamic programme, local search, IGA / ACO / AGA with the paper's parameters, an
 from __future__ import annotations
 
 import re
-import time
 
 import numpy as np
 import pytest
@@ -171,11 +170,10 @@ def test_iga_beats_aco_and_aga_on_a_40_hole_face(right_arm_face, capsys):
     assert best <= mean["iga"] + 1e-6
 
 
-def test_auto_is_fast_on_52_holes():
+def test_auto_on_52_holes_matches_iga():
+    """Its time goal (under 1 s of CPU) is benchmarks/bench_speed_goals.py's."""
     H = random_face(52, 7)
-    t0 = time.process_time()  # CPU time: the test machine may be shared
     res = sequence_holes(H, [9000, 0, 0], "auto", seed=0)
-    assert time.process_time() - t0 < 1.0
     assert res.length <= sequence_holes(H, [9000, 0, 0], "iga", seed=0,
                                         params={"iterations": 100}).length + 1e-6
 

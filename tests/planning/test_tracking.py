@@ -3,11 +3,10 @@ errors reached by PI-HGSO on a short run, the default controller, seeds and bad 
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
+from kinematics.fk import fk
 from kinematics.jacobian import jacobian_and_pose
 from kinematics.library import builtin_model
 from kinematics.model import RobotModel
@@ -75,7 +74,10 @@ def test_pi_hgso_short_run_reaches_the_papers_errors(hgso_runs, paper_tables, ki
     that the numbers are comparable; the full-length figures are in bench_tracking.py."""
     paper = paper_tables["hyper_redundant_9dof"]["table3_errors_m"][PAPER_TASK[kind]]
     task, tuned, sim = hgso_runs[kind]
-    assert tuned.fitness == pytest.approx(sim.mean_error[0])
+    # The tuner's fitness is eq. 24 of its gains: the mean tool error along the path, here
+    # recomputed from the recorded joint path through fk.
+    fk_error = np.linalg.norm(sim.x_desired - fk(ARM, sim.q[0])[:, :3, 3], axis=1)
+    assert tuned.fitness == pytest.approx(fk_error.mean(), rel=1e-9)
     assert sim.mean_error[0] <= 1e3 * paper["PI-HGSO"]["mean"]
     assert sim.max_error[0] <= 1e3 * paper["PI-HGSO"]["max"]
     # ... and the untuned PI is worse than the tuned one (Table 3's 'PI' row).
@@ -135,16 +137,19 @@ def test_population_is_simulated_as_independent_runs():
         np.testing.assert_allclose(batch.q[i], one.q[0], atol=1e-12)
 
 
-def test_population_fitness_is_fast():
-    f = tracking_fitness(ARM, LineTask())
+def test_population_fitness_is_eq_24_per_candidate():
+    """One batched call rates a population of 50; each value is eq. 24 of that candidate's
+    own run (its time goal is benchmarks/bench_speed_goals.py's)."""
+    task = LineTask(duration=5.0)
+    f = tracking_fitness(ARM, task)
     X = np.random.default_rng(0).uniform(GainBounds().lower, GainBounds().upper, (50, 3))
-    f(X)
-    t0 = time.perf_counter()
     F = f(X)
-    dt = time.perf_counter() - t0
-    print(f"\none population of 50, line task (200 steps): {1e3 * dt:.0f} ms")
-    assert F.shape == (50,) and np.all(np.isfinite(F))
-    assert dt < 1.0  # ~60 ms here; generous for a loaded CI machine
+    assert F.shape == (50,) and np.all(np.isfinite(F)) and np.all(F > 0)
+    assert len(np.unique(F)) == 50  # different gains, different errors
+    for i in (0, 17, 49):
+        sim = simulate(ARM, task, PIGains((X[i, 0], X[i, 1]), X[i, 2]))
+        fk_error = np.linalg.norm(sim.x_desired - fk(ARM, sim.q[0])[:, :3, 3], axis=1)
+        assert F[i] == pytest.approx(fk_error.mean(), rel=1e-9)
 
 
 @pytest.mark.parametrize("tuner", sorted(TUNERS))

@@ -7,9 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from kinematics.fk import fk
 from kinematics.library import builtin_model
 from planning.tracking import UNTUNED_PI_GAINS, LineTask, simulate, tune_gains
-from planning.tracking_stats import TunerStats, format_table3, tracking_table
+from planning.tracking_stats import TrackingTable, TunerStats, format_table3, tracking_table
 
 ARM = builtin_model("hyper_redundant_9dof")
 TASK = LineTask(length=100.0, duration=5.0)
@@ -25,39 +26,57 @@ def table_and_progress():
     return table, seen
 
 
+def fk_errors(gains) -> np.ndarray:
+    """Tool error along TASK for ``gains``, mm per sample: the recorded joint path put
+    through ``fk`` and compared with the desired path (not the simulation's own errors)."""
+    sim = simulate(ARM, TASK, gains)
+    return np.linalg.norm(sim.x_desired - fk(ARM, sim.q[0])[:, :3, 3], axis=1)
+
+
 def test_rows_hold_one_tuning_per_seed(table_and_progress):
     table, _ = table_and_progress
     assert table.task == "line" and [r.name for r in table.rows] == ["pso", "gwo"]
     pso = table.rows[0]
     assert pso.fitness.shape == pso.run_max.shape == pso.run_std.shape == (RUNS,)
-    # run r is the tuning with seed 4 + r, simulated again
-    again = tune_gains(ARM, TASK, "pso", 4 + 2, iterations=ITERATIONS).gains
-    assert pso.gains[2] == again
-    sim = simulate(ARM, TASK, again)
-    assert pso.fitness[2] == pytest.approx(sim.mean_error[0], rel=1e-12)
-    assert pso.run_max[2] == pytest.approx(sim.max_error[0], rel=1e-12)
-    assert pso.run_std[2] == pytest.approx(sim.std_error[0], rel=1e-12)
+    assert len(pso.gains) == RUNS and len(set(pso.gains)) == RUNS  # one tuning per seed
+    # run r is the tuning with seed 4 + r ...
+    assert pso.gains[2] == tune_gains(ARM, TASK, "pso", 4 + 2, iterations=ITERATIONS).gains
+    # ... and its columns are eq. 24, the worst and the spread of its tool errors
+    err = fk_errors(pso.gains[2])
+    assert pso.fitness[2] == pytest.approx(err.mean(), rel=1e-9)
+    assert pso.run_max[2] == pytest.approx(err.max(), rel=1e-9)
+    assert pso.run_std[2] == pytest.approx(err.std(), rel=1e-9)
 
 
-def test_summary_columns_are_the_papers(table_and_progress):
+def test_summary_columns_are_the_papers():
+    """Hand-made runs: max is the worst step of any run, mean the mean of the runs' eq. 24
+    values, std the mean of the runs' fluctuations, best_run the lowest eq. 24."""
+    row = TunerStats("x", np.array([0.25, 0.5, 0.5, 0.75]), np.array([1.0, 3.5, 0.75, 0.25]),
+                     np.array([0.1, 0.2, 0.3, 0.2]), ())
+    assert row.max == 3.5
+    assert row.mean == pytest.approx(0.5)
+    assert row.std == pytest.approx(0.2)
+    assert row.best_run == 0
+
+
+def test_untuned_pi_row_repeats_one_deterministic_run(table_and_progress):
     table, _ = table_and_progress
-    for row in (table.baseline, *table.rows):
-        assert row.max == row.run_max.max()  # worst case over every step of every run
-        assert row.mean == pytest.approx(row.fitness.mean())  # mean of eq. 24
-        assert row.std == pytest.approx(row.run_std.mean())  # mean fluctuation
-    # untuned PI is deterministic: all its runs are the same simulation
-    base = simulate(ARM, TASK, UNTUNED_PI_GAINS)
-    np.testing.assert_allclose(table.baseline.fitness, base.mean_error[0], rtol=1e-12)
-    assert table.baseline.p_value is None
+    base = table.baseline
+    err = fk_errors(UNTUNED_PI_GAINS)
+    np.testing.assert_allclose(base.fitness, np.full(RUNS, err.mean()), rtol=1e-9)
+    np.testing.assert_allclose(base.run_max, np.full(RUNS, err.max()), rtol=1e-9)
+    assert base.gains == (UNTUNED_PI_GAINS,) * RUNS
+    assert base.p_value is None
 
 
 def test_rank_sum_finds_every_tuner_better_than_untuned_pi(table_and_progress):
     table, _ = table_and_progress
     for row in table.rows:
         assert row.fitness.max() < table.baseline.fitness.min()
-        # 6 against 6 with no overlap: the smallest two-sided p the normal approximation
-        # gives for these sizes, about 0.004
-        assert row.p_value == pytest.approx(0.0039, abs=5e-4)
+        # 6 against 6 with no overlap: rank sum W = 1 + ... + 6 = 21 against a mean of
+        # 6 * 13 / 2 = 39 and a variance of 6 * 6 * 13 / 12 = 39, z = -18 / sqrt(39) = -2.882,
+        # two-sided p = 2 * Phi(-2.882) = 0.00395 (the normal approximation)
+        assert row.p_value == pytest.approx(0.00395, abs=5e-5)
         assert row.sign(table.baseline) == "+"
 
 
@@ -73,20 +92,30 @@ def test_progress_rises_to_one(table_and_progress):
     assert seen and seen == sorted(seen) and seen[-1] == pytest.approx(1.0)
 
 
-def test_format_table3_converts_the_papers_metres(table_and_progress):
-    table, _ = table_and_progress
-    text = format_table3(table, {"PI-PSO": {"max": 8.42e-3, "mean": 2.75e-3, "std": 7.32e-4}})
-    lines = text.splitlines()
+def test_format_table3_converts_the_papers_metres():
+    """Hand-made rows whose columns are worked out by hand: PI-PSO's max 1 mm is 3 mm below
+    PI's 4 mm, its mean 0.5 mm is 75 % below PI's 2 mm; PI-GWO is 2 mm and 50 % worse."""
+    base = TunerStats("pi", np.full(4, 2.0), np.full(4, 4.0), np.full(4, 0.5), ())
+    pso = TunerStats("pso", np.array([0.25, 0.5, 0.5, 0.75]), np.array([1.0, 0.5, 0.75, 0.25]),
+                     np.array([0.1, 0.2, 0.3, 0.2]), (), p_value=0.004)
+    gwo = TunerStats("gwo", np.full(4, 3.0), np.array([5.0, 6.0, 5.5, 5.0]), np.ones(4), (),
+                     p_value=0.2)
+    table = TrackingTable("line", base, (pso, gwo))
+    paper = {"PI-PSO": {"max": 8.42e-3, "mean": 2.75e-3, "std": 7.32e-4}}
+    lines = format_table3(table, paper).splitlines()
     assert len(lines) == 1 + 1 + 2  # header, PI, two tuners
-    assert lines[1].split()[0] == "PI" and lines[2].split()[0] == "PI-PSO"
-    b, pso = table.baseline, table.rows[0]
-    pct = 100.0 * (b.mean - pso.mean) / b.mean
-    assert f"{pct:8.2f}%" in lines[2]
-    assert f"{b.max - pso.max:11.4f}" in lines[2]  # Table 3's "variation"
-    assert lines[2].rstrip().endswith("8.42     2.75    0.732")  # metres -> mm
-    assert lines[3].rstrip().endswith("-        -        -")  # no paper value given
+    assert lines[0].split()[:10] == ["line", "algorithm", "max", "variation", "mean",
+                                     "percent", "std", "ranksum", "p", "|"]
+    assert lines[1].split() == ["PI", "4.0000", "/", "2.0000", "/", "0.5000", "/",
+                                "|", "-", "-", "-"]
+    assert lines[2].split() == ["PI-PSO", "1.0000", "3.0000", "0.5000", "75.00%", "0.2000",
+                                "+", "0.004", "|", "8.42", "2.75", "0.732"]  # metres -> mm
+    assert lines[3].split() == ["PI-GWO", "6.0000", "-2.0000", "3.0000", "-50.00%", "1.0000",
+                                "=", "0.2", "|", "-", "-", "-"]  # no paper value given
     assert "paper" in lines[0]
-    assert "paper" not in format_table3(table).splitlines()[0]
+    plain = format_table3(table).splitlines()
+    assert "paper" not in plain[0] and "|" not in "".join(plain)
+    assert plain[2].split() == lines[2].split()[:8]
 
 
 def test_runs_must_be_positive():

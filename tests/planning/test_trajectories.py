@@ -158,7 +158,7 @@ def test_sampling_includes_the_end_and_caps_the_count(glt_abc):
         traj.sample(1e-6)
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=30, deadline=None, derandomize=True, database=None)
 @given(
     st.integers(3, 8),
     st.integers(1, 4),

@@ -24,7 +24,7 @@ from kinematics.fk import fk, fk_frames
 from kinematics.library import BUILTIN_IDS, builtin_model
 from kinematics.model import RobotModel
 from web.gui import from_display, to_display
-from web.results import DEFAULT_SECONDS, plan_from_result
+from web.results import DEFAULT_SECONDS, DRAWERS, drawable, drawer, plan_from_result
 from web.scene import (
     MM_TO_M,
     RobotNodes,
@@ -362,9 +362,12 @@ def _line_path_result(model: RobotModel):
     scene = {"bounds": [(start - 1000).tolist(), (start + 1000).tolist()],
              "obstacles": [{"center": (start + [300.0, 150.0, 0.0]).tolist(), "radius": 100.0}]}
     clearance = Scene.from_dict(scene).path_clearance(points)
+    length = float(np.linalg.norm(goal - start))
     result = {"path": points.tolist(), "joint_path": plan.q_waypoints.tolist(),
-              "length": float(np.linalg.norm(goal - start)), "min_clearance": clearance,
-              "runtime_s": 0.0, "convergence": []}
+              "length": length, "min_clearance": clearance, "runtime_s": 0.0,
+              "convergence": [], "algorithm": "auto", "evaluations": 0, "success": True,
+              "status": "ok", "message": "a straight line", "raw_length": length,
+              "trajectory": None, "cylinders": None, "robot": model.id}
     params = {"scene": scene, "start": start.tolist(), "goal": goal.tolist(),
               "algorithm": "auto", "seed": 0, "robot": model.id}
     return params, result
@@ -392,77 +395,6 @@ def test_a_path_plan_draws_obstacles_the_line_and_moves_the_arm(api):
     np.testing.assert_allclose(v.tool_position(), result["path"][-1], atol=1e-4)
 
 
-def test_a_tracking_plan_draws_desired_and_actual_paths():
-    tracking = pytest.importorskip("planning.tracking")
-    model = builtin_model("hyper_redundant_9dof")
-    task = tracking.LineTask(length=100.0, duration=4.0)
-    run = tracking.simulate(model, task, tracking.PIGains((2.0, 2.0), 0.5),
-                            controller="default")
-    result = {"q": run.q[0].tolist(), "errors": run.error[0].tolist(),
-              "x_desired": run.x_desired.tolist(), "mean_error": float(run.mean_error[0]),
-              "max_error": float(run.max_error[0])}
-    plan = plan_from_result("tracking", {"robot": model.id}, result, job="t",
-                            models=builtin_model)
-    desired, actual = plan.polylines
-    np.testing.assert_allclose(desired.points, run.x_desired)
-    np.testing.assert_allclose(np.linalg.norm(actual.points - desired.points, axis=1),
-                               run.error[0], atol=1e-6)
-    assert plan.motions[""].duration == pytest.approx(run.t[-1])
-
-
-def test_sequence_and_multiarm_plans_read_the_documented_shapes(api):
-    """Rendering only: the holes are tool positions of real FK, but the orders and joint
-    paths below are made up for the test (no sequencing or multi-arm planner exists yet)."""
-    v = api.state.viewer
-    rig = api.state.registry.rigs["tunnel_jumbo"]
-    rng = np.random.default_rng(RNG_SEED)
-    holes, trajectories = {}, {}
-    for arm, model in rig.arms.items():
-        qs = rng.uniform(model.lower, model.upper, size=(4, model.dof))
-        holes[arm] = fk(model, qs)[:, :3, 3].tolist()
-        trajectories[arm] = {"q": qs.tolist(), "t": [0.0, 1.0, 2.0, 3.0], "order": [0, 1, 2, 3]}
-    plan = plan_from_result("multiarm", {"rig": "tunnel_jumbo", "holes": holes,
-                                         "planner": "iapf"},
-                            {"trajectories": trajectories, "min_distance": {"left-middle": [
-                                900.0, 850.0]}, "collisions": []},
-                            job="m", models=api.state.registry.get, rigs=api.state.registry.rigs)
-    v.show_plan(plan)
-    assert v.current["robot"] == "tunnel_jumbo"
-    assert {"/plan/multiarm/left/holes/0", "/plan/multiarm/right/order",
-            "/plan/multiarm/middle/tool_path"} <= set(v.plan_nodes)
-    v.set_time(3.0)  # every arm ends at its last configuration: on its last hole
-    for arm in rig.arms:
-        np.testing.assert_allclose(v.tool_position(arm), holes[arm][3], atol=1e-6)
-
-    drill = builtin_model("tunnel_drill_arm")
-    pts = fk(drill, rng.uniform(drill.lower, drill.upper, size=(6, drill.dof)))[:, :3, 3]
-    plan = plan_from_result("sequence", {"holes": pts.tolist(), "start": [0.0, 0.0, 0.0]},
-                            {"order": [5, 4, 3, 2, 1, 0], "length": 1.0}, job="s",
-                            models=builtin_model)
-    (line,) = plan.polylines
-    np.testing.assert_allclose(line.points, np.vstack([[0, 0, 0], pts[::-1]]))
-    v.show_plan(plan)
-    assert {"/plan/sequence/holes/5", "/plan/sequence/order"} <= set(v.plan_nodes)
-    assert v.current["robot"] == "tunnel_jumbo"  # a sequence without robot keeps the scene
-    with pytest.raises(ValueError, match="order"):
-        plan_from_result("sequence", {"holes": pts.tolist()}, {"order": [7]},
-                         models=builtin_model)
-
-
-def test_results_without_the_documented_shape_are_rejected_by_key():
-    with pytest.raises(ValueError, match="kind 'echo'"):
-        plan_from_result("echo", {}, {"value": 1}, models=builtin_model)
-    with pytest.raises(ValueError, match="^points"):
-        plan_from_result("workspace", {"robot": "pile_driver"}, {"points": [[1, 2]]},
-                         models=builtin_model)
-    with pytest.raises(ValueError, match="joint_path"):
-        plan_from_result("path", {"robot": "pile_driver"},
-                         {"path": [[0, 0, 0], [1, 1, 1]], "joint_path": [[0.0] * 5]},
-                         models=builtin_model)
-    with pytest.raises(ValueError, match="params.robot"):
-        plan_from_result("tracking", {"robot": "nope"}, {"q": [[0.0]]}, models=builtin_model)
-
-
 # ---- the route ------------------------------------------------------------------------------
 def test_viewer_show_route_maps_errors(api):
     with TestClient(api) as client:
@@ -481,6 +413,14 @@ def test_viewer_show_route_maps_errors(api):
         assert client.post("/viewer/show", json={"job": echo["id"]}).status_code == 422
         assert client.post("/viewer/show", json={"robot": "pile_driver",
                                                  "job": echo["id"]}).status_code == 422
+        # A tracking result stored before the desired path was kept: 422 naming the key.
+        store = api.state.store
+        store.add_job("oldtracking", "tracking", {"task": {"kind": "line"}}, {})
+        store.finish_job("oldtracking", "succeeded", result_json=json.dumps({
+            "robot": "hyper_redundant_9dof", "t": [0.0, 0.1], "q": [[0.0] * 9] * 2}))
+        r = client.post("/viewer/show", json={"job": "oldtracking"})
+        assert r.status_code == 422, r.text
+        assert "result.task: Field required" in r.json()["detail"][0]["msg"]
 
 
 def test_viewer_show_route_is_409_until_the_job_succeeds(api):
@@ -493,55 +433,184 @@ def test_viewer_show_route_is_409_until_the_job_succeeds(api):
         api.state.viewer.show_job(job["id"])
 
 
-# ---- results of the real job kinds, where this tree registers them -------------------------
+# ---- results of real jobs of every drawable kind -----------------------------------------
+SIDES = {"left": [[9000, 2600, 300], [9000, 3400, 1500]],
+         "middle": [[9000, 0, 2400], [9000, 1000, 4300]],
+         "right": [[9000, -2600, 500], [9000, -3500, 2000]]}
+HOLES = [[9000, 0, 0], [9000, 1200, 300], [9000, -800, 900], [9000, 400, 2000]]
+
+
+def _drawable_params(kind: str) -> dict:
+    """Small params of a real job of each drawable kind."""
+    if kind == "workspace":
+        return {"robot": "pile_driver", "samples": 400, "return_points": 50}
+    if kind == "path":
+        model = builtin_model("pile_driver")
+        start = fk(model, np.radians([10, 30, -30, -30, 0, 0]))[:3, 3]
+        goal = fk(model, np.radians([60, 35, -25, -30, 0, 0]))[:3, 3]
+        return {"scene": {"bounds": [[-2500, -2500, -1000], [2500, 2500, 2000]],
+                          "obstacles": [{"center": ((start + goal) / 2).tolist(),
+                                         "radius": 100},
+                                        {"type": "box", "lower": [-2000, -2000, -900],
+                                         "upper": [-1800, -1800, -700]}]},
+                "start": start.tolist(), "goal": goal.tolist(), "algorithm": "auto",
+                "seed": 0, "robot": "pile_driver"}
+    if kind == "sequence":
+        return {"holes": HOLES, "start": [9000, 0, -1000]}
+    if kind == "multiarm":
+        return {"holes": SIDES, "output_dt": 1.0}
+    return {"robot": "hyper_redundant_9dof",
+            "task": {"kind": "line", "length": 100.0, "duration": 5.0}}
+
+
 def _run_kind(kind: str, params: dict) -> tuple[dict, dict]:
-    from app.jobs.kinds import KINDS, load_kind_modules
+    """The stored params and result JSON of a job run in this process as a worker runs it."""
+    from app.jobs.catalog import KINDS
+    from app.jobs.kinds import JobPayload, execute
 
-    load_kind_modules()
-    if kind not in KINDS:
-        pytest.skip(f"the '{kind}' job kind is not registered in this tree yet")
     spec = KINDS[kind]
-    clean = spec.params.model_validate(params).model_dump(mode="json")
-    payload = dict(clean)
-    if clean.get("robot"):
-        payload["_model"] = builtin_model(clean["robot"]).to_dict()
-    result = json.loads(json.dumps(spec.run(payload, lambda fraction, message: None)))
-    return clean, result
+    checked = spec.load_params(params)
+    robot = spec.robot_id(checked)
+    payload = JobPayload(params=checked.model_dump(mode="json"),
+                         robot_model=builtin_model(robot).to_dict() if robot else None)
+    text = execute(kind, payload.model_dump(mode="json"), lambda fraction, message: None)
+    return checked.model_dump(mode="json"), json.loads(text)
 
 
-def test_a_real_path_job_result_is_drawn_and_moves_the_arm(api):
-    model = builtin_model("pile_driver")
-    start = fk(model, np.radians([10, 30, -30, -30, 0, 0]))[:3, 3]
-    goal = fk(model, np.radians([60, 35, -25, -30, 0, 0]))[:3, 3]
-    params, result = _run_kind("path", {
-        "scene": {"bounds": [[-2500, -2500, -1000], [2500, 2500, 2000]],
-                  "obstacles": [{"center": ((start + goal) / 2).tolist(), "radius": 100}]},
-        "start": start.tolist(), "goal": goal.tolist(), "algorithm": "auto", "seed": 0,
-        "robot": "pile_driver"})
-    plan = plan_from_result("path", params, result, job="p", models=builtin_model)
+@pytest.fixture(scope="module")
+def real_jobs() -> dict[str, tuple[dict, dict]]:
+    return {kind: _run_kind(kind, _drawable_params(kind)) for kind in DRAWERS}
+
+
+def test_the_drawable_kinds_are_the_kinds_with_a_drawer():
+    from app.jobs.catalog import KINDS
+
+    assert set(DRAWERS) == {"workspace", "path", "sequence", "multiarm", "tracking"}
+    assert set(DRAWERS) <= set(KINDS)
+    assert drawable("path") and not drawable("echo")
+    with pytest.raises(ValueError, match="'nope' is not a job kind"):
+        drawer("nope")(lambda params, result, ctx: None)
+    with pytest.raises(ValueError, match="'path' has a drawer already"):
+        drawer("path")(lambda params, result, ctx: None)
+    assert DRAWERS["path"].__name__ == "_path"
+    with pytest.raises(ValueError, match="kind 'echo'"):
+        plan_from_result("echo", {}, {"value": 1}, models=builtin_model)
+
+
+@pytest.mark.parametrize("kind", ["workspace", "path", "sequence", "multiarm", "tracking"])
+def test_every_drawable_kind_is_drawn_from_its_typed_result(api, real_jobs, kind):
+    from app.jobs.catalog import KINDS
+
     v = api.state.viewer
-    v.show_plan(plan)
-    assert {"/plan/path/path", "/plan/path/obstacles/0"} <= set(v.plan_nodes)
-    if result.get("trajectory"):
-        v.set_time(plan.duration)
-        np.testing.assert_allclose(v.tool_position(), goal, atol=1.0)
+    registry = api.state.registry
+    params, result = real_jobs[kind]
+    plan = plan_from_result(kind, params, result, job="j", models=registry.get,
+                            rigs=registry.rigs)
+    spec = KINDS[kind]  # the models themselves draw the same
+    typed = plan_from_result(kind, spec.load_params(params), spec.load_result(result),
+                             job="j", models=registry.get, rigs=registry.rigs)
+    assert typed.names == plan.names and typed.summary == plan.summary
+    v.select("glt_palletizer")
+    shown = v.show_plan(plan)
+    nodes = set(v.plan_nodes)
+    root = f"/plan/{kind}"
+    if kind == "workspace":
+        assert shown["robot"] == "pile_driver" and f"{root}/points" in nodes
+        np.testing.assert_allclose(plan.clouds[0].points, result["points"])
+    elif kind == "path":
+        assert {f"{root}/path", f"{root}/obstacles/0", f"{root}/bounds", f"{root}/start/0",
+                f"{root}/goal/0", f"{root}/obstacle_box_1"} <= nodes
+        assert result["trajectory"] is not None
+        assert plan.duration == pytest.approx(result["trajectory"]["t"][-1])
+        v.set_time(plan.duration)  # the arm moves along the trajectory, to the goal
+        np.testing.assert_allclose(v.tool_position(), params["goal"], atol=1.0)
+    elif kind == "sequence":
+        (line,) = plan.polylines
+        expected = np.vstack([params["start"], np.array(HOLES)[result["order"]]])
+        np.testing.assert_allclose(line.points, expected)
+        assert {f"{root}/holes/3", f"{root}/order"} <= nodes and not plan.motions
+        assert shown["robot"] == "glt_palletizer"  # a sequence names no robot: kept
+    elif kind == "multiarm":
+        assert shown["robot"] == "tunnel_jumbo" and set(plan.motions) == set(SIDES)
+        for arm, data in result["arms"].items():
+            assert {f"{root}/{arm}/holes/0", f"{root}/{arm}/order",
+                    f"{root}/{arm}/tool_path"} <= nodes
+            order = next(p for p in plan.polylines if p.name == f"{arm}/order")
+            np.testing.assert_allclose(order.points, data["holes"])  # in drilling order
+            motion = plan.motions[arm]
+            np.testing.assert_allclose(motion.t, result["t"])
+            np.testing.assert_allclose(motion.q, data["q"])
+        v.set_time(result["t"][1])
+        model = registry.rigs["tunnel_jumbo"].arms["left"]
+        np.testing.assert_allclose(v.tool_position("left"),
+                                   fk(model, np.array(result["arms"]["left"]["q"][1]))[:3, 3],
+                                   atol=1e-6)
+    else:
+        desired, actual = plan.polylines
+        assert (desired.name, actual.name) == ("desired", "actual")
+        np.testing.assert_allclose(desired.points, result["x_desired"])
+        model = builtin_model("hyper_redundant_9dof")
+        np.testing.assert_allclose(actual.points, fk(model, np.asarray(result["q"]))[:, :3, 3])
+        np.testing.assert_allclose(actual.points, result["x_actual"], atol=1e-9)
+        assert plan.motions[""].duration == pytest.approx(result["t"][-1] - result["t"][0])
+        assert {f"{root}/actual", f"{root}/desired"} <= nodes
 
 
-def test_a_real_tracking_job_result_is_drawn(api):
-    params, result = _run_kind("tracking", {
-        "robot": "hyper_redundant_9dof", "task": {"kind": "line", "length": 100.0,
-                                                  "duration": 5.0}})
-    plan = plan_from_result("tracking", params, result, job="t", models=builtin_model)
-    names = [p.name for p in plan.polylines]
-    assert names == ["desired", "actual"]  # the job's result carries the desired path
-    actual = plan.polylines[names.index("actual")].points
-    model = builtin_model("hyper_redundant_9dof")
-    np.testing.assert_allclose(actual, fk(model, np.asarray(result["q"]))[:, :3, 3])
-    np.testing.assert_allclose(plan.polylines[0].points, result["x_desired"])
-    assert "desired" in plan.summary
-    assert plan.motions[""].duration == pytest.approx(result["t"][-1] - result["t"][0])
-    api.state.viewer.show_plan(plan)
-    assert {"/plan/tracking/actual", "/plan/tracking/desired"} <= set(api.state.viewer.plan_nodes)
+def _changed(data: dict, path: str, value) -> dict:
+    """A deep copy of ``data`` with the item at dotted ``path`` set (``...`` deletes it)."""
+    out = json.loads(json.dumps(data))
+    *keys, last = [int(k) if k.isdigit() else k for k in path.split(".")]
+    node = out
+    for k in keys:
+        node = node[k]
+    if value is ...:
+        del node[last]
+    else:
+        node[last] = value
+    return out
+
+
+@pytest.mark.parametrize("kind, where, path, value, words", [
+    ("workspace", "result", "points.0", [1, 2], "result.points.0: List should have at least 3"),
+    ("workspace", "result", "volume", "big", "result.volume:"),
+    ("path", "result", "trajectory", ..., "result.trajectory: Field required"),
+    ("path", "result", "orders", [0], "result.orders: Extra inputs are not permitted"),
+    ("path", "params", "start", [1e9, 0, 0], "params.start"),
+    ("sequence", "result", "order", [7, 0, 1, 2], "result.order: hole indices must lie in 0..3"),
+    ("sequence", "params", "robot", "pile_driver", "params.robot: Extra inputs"),
+    ("multiarm", "result", "arms.left.order", [0, 1], "result.arms.left.order: Extra inputs"),
+    ("multiarm", "result", "arms.left.q.0", [0.0] * 5, "result.arms.left.q: expected 7"),
+    ("multiarm", "result", "t.0", 5.0, "result.t: expected"),
+    ("tracking", "result", "x_desired", ..., "result.x_desired: Field required"),
+    ("tracking", "result", "dt", 0.1, "result.dt: Extra inputs"),
+    ("tracking", "result", "q.0", [0.0] * 6, "result.q: expected 9 joint values"),
+    ("tracking", "params", "robot", "nope", "params.robot: unknown robot 'nope'"),
+])
+def test_a_result_of_the_wrong_shape_is_rejected_naming_the_key(api, real_jobs, kind, where,
+                                                                path, value, words):
+    params, result = real_jobs[kind]
+    if where == "result":
+        result = _changed(result, path, value)
+    else:
+        params = _changed(params, path, value)
+    with pytest.raises(ValueError) as info:
+        plan_from_result(kind, params, result, models=api.state.registry.get,
+                         rigs=api.state.registry.rigs)
+    assert words in str(info.value)
+
+
+def test_a_result_that_is_not_an_object_is_rejected():
+    with pytest.raises(ValueError, match="^result: expected a JSON object"):
+        plan_from_result("sequence", {"holes": HOLES}, [0, 1, 2, 3], models=builtin_model)
+
+
+def test_a_stored_job_is_shown_by_its_id(api, real_jobs):
+    params, result = real_jobs["sequence"]
+    store = api.state.store
+    store.add_job("seq", "sequence", params, {})
+    store.finish_job("seq", "succeeded", result_json=json.dumps(result))
+    shown = api.state.viewer.show_job("seq")
+    assert "/plan/sequence/order" in shown["nodes"]
 
 
 def test_a_workspace_job_survives_a_store_outage(api, monkeypatch):

@@ -98,10 +98,9 @@ def joints_from_cylinders(robot: RobotDep, body: CylindersInverseRequest) -> JSO
     """Joint values from cylinder lengths; joints without a given cylinder come from q."""
     cyl = _cylinders_of(robot)
     q_other = None if body.q is None else joint_rows(robot, body.q)[0][0]
-    try:
-        q = cyl.joints_from_lengths(body.lengths, q_other)
-    except CylinderError as exc:
-        raise invalid(exc.field.split(".", 1), exc.message) from None
+    # A length out of stroke, an unknown cylinder or a pair that disagrees: CylinderError
+    # (a FieldError) at ``lengths.<name>``, answered 422 there.
+    q = cyl.joints_from_lengths(body.lengths, q_other)
     return JSONResponse({
         "q": q.tolist(),
         "joints_within_limits": bool(robot.within_limits(q)),

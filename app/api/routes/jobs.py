@@ -1,20 +1,28 @@
-"""Long-running work as jobs: submit, list, follow, fetch the result, cancel."""
+"""Long-running work as jobs: submit, list, follow, fetch the result, cancel.
+
+Every kind's params and result are pydantic models (``app.jobs.catalog``): ``GET /jobs/kinds``
+publishes both JSON schemas, and ``GET /jobs/{id}/result`` is documented as one of the result
+models (the stored JSON text is served as it is; it was checked against its kind's model when
+stored). ``GET /jobs/{id}/plot`` serves the kinds that have a ``plot`` hook.
+"""
 
 from __future__ import annotations
 
-import json
+import functools
+import operator
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, Path, Query, Request, Response
-from pydantic import Field
+from pydantic import Field, ValidationError
 from starlette.concurrency import run_in_threadpool
 
 from ...jobs.caps import MAX_PARAMS_BYTES, MAX_PARAMS_DEPTH, MAX_TIME_LIMIT_S
-from ...jobs.kinds import KINDS
+from ...jobs.catalog import KINDS
+from ...jobs.kinds import error_text
 from ...jobs.manager import JobManager, JobParamsError, JobStateError, QueueFullError
 from ..deps import RegistryDep, require_api_key
 from ..errors import http_error, not_found
-from ..schemas import Body, JobRecordOut
+from ..schemas import Body, JobKindOut, JobRecordOut
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
@@ -25,6 +33,9 @@ MAX_PAGE = 1000
 MAX_OFFSET = 10**12
 
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
+
+#: The result of a job: one of the kinds' result models (which one: the job's ``kind``).
+JobResult = functools.reduce(operator.or_, (kind.result for kind in KINDS.values()))
 
 
 class JobRequest(Body):
@@ -99,13 +110,18 @@ def list_jobs(
     return [j.to_dict() for j in page]
 
 
-@router.get("/kinds")
+@router.get("/kinds", response_model=list[JobKindOut])
 def job_kinds() -> list[dict]:
-    """The job kinds, the JSON schema of their params and the most bytes of JSON those
-    may take."""
-    return [{"kind": k.name, "description": k.description,
-             "params": k.params.model_json_schema(), "max_params_bytes": k.max_params_bytes}
-            for k in KINDS.values()]
+    """The job kinds: the JSON schemas of their params and of their result, the most bytes
+    of JSON the params may take, and whether ``GET /jobs/{id}/plot`` draws them."""
+    out = []
+    for k in KINDS.values():
+        params = k.params.model_json_schema()
+        out.append({"kind": k.name, "description": k.description, "params": params,
+                    "params_schema": params,
+                    "result_schema": k.result.model_json_schema(mode="serialization"),
+                    "max_params_bytes": k.max_params_bytes, "plot": k.plot is not None})
+    return out
 
 
 @router.get("/{job_id}", response_model=JobRecordOut, responses={404: {"description": "Unknown"}})
@@ -117,10 +133,12 @@ def get_job(job_id: JobId, jobs: ManagerDep) -> dict:
         raise not_found("job", job_id) from None
 
 
-@router.get("/{job_id}/result", responses={404: {"description": "Unknown job"},
-                                          409: {"description": "Not succeeded (yet)"}})
+@router.get("/{job_id}/result", response_model=JobResult,
+            responses={404: {"description": "Unknown job"},
+                       409: {"description": "Not succeeded (yet)"}})
 def get_job_result(job_id: JobId, jobs: ManagerDep) -> Response:
-    """The result JSON of a succeeded job; 409 until then."""
+    """The result JSON of a succeeded job, of its kind's result schema (``result_schema`` in
+    ``GET /jobs/kinds``); 409 until then."""
     try:
         text = jobs.result(job_id)
     except KeyError:
@@ -130,29 +148,26 @@ def get_job_result(job_id: JobId, jobs: ManagerDep) -> Response:
     return Response(text, media_type="application/json")
 
 
-#: Job kinds ``GET /jobs/{id}/plot`` can draw.
-PLOTTABLE_KINDS = ("tracking",)
-
-
 @router.get("/{job_id}/plot", response_class=Response,
             responses={200: {"content": {"image/png": {}}},
                        404: {"description": "Unknown job"},
                        409: {"description": "Not succeeded (yet)"},
-                       422: {"description": "A kind without a plot"}})
+                       422: {"description": "A kind without a plot, or a result stored in an "
+                             "older shape"}})
 async def get_job_plot(job_id: JobId, jobs: ManagerDep, registry: RegistryDep,
                        request: Request) -> Response:
-    """A succeeded job's result as a PNG. ``tracking``: joint angles, joint speeds (limits
-    dashed), error per axis and tool error against time (paper 003, Figure 7)."""
-    from ...plots import tracking_png
-
-    args = await run_in_threadpool(_tracking_plot_args, job_id, jobs, registry)
+    """A succeeded job's result as a PNG, for the kinds with a plot (``plot`` in ``GET
+    /jobs/kinds``). ``tracking``: joint angles, joint speeds (limits dashed), error per axis
+    and tool error against time (paper 003, Figure 7)."""
+    plot, *args = await run_in_threadpool(_plot_args, job_id, jobs, registry)
     # Drawing holds the interpreter for a while: in a worker process (app.compute).
-    png = await request.app.state.compute.run(True, tracking_png, *args)
+    png = await request.app.state.compute.run(True, plot, *args)
     return Response(png, media_type="image/png")
 
 
-def _tracking_plot_args(job_id: str, jobs: JobManager, registry) -> tuple:
-    """What ``tracking_png`` draws for job ``job_id`` (404, 409 or 422 when there is none)."""
+def _plot_args(job_id: str, jobs: JobManager, registry) -> tuple:
+    """The plot hook of job ``job_id``'s kind and its arguments: the typed params and result
+    and the robot's model (None if deleted since); 404, 409 or 422 when there is no plot."""
     try:
         job = jobs.get(job_id)
         text = jobs.result(job_id)
@@ -160,27 +175,24 @@ def _tracking_plot_args(job_id: str, jobs: JobManager, registry) -> tuple:
         raise not_found("job", job_id) from None
     except JobStateError as exc:
         raise http_error(409, ["path", "job_id"], str(exc), "conflict") from None
-    if job.kind not in PLOTTABLE_KINDS:
+    kind = KINDS.get(job.kind)
+    if kind is None or kind.plot is None:
+        plottable = ", ".join(k.name for k in KINDS.values() if k.plot is not None)
         raise http_error(422, ["path", "job_id"], f"jobs of kind '{job.kind}' have no plot; "
-                         f"plots exist for {', '.join(PLOTTABLE_KINDS)}", "value_error")
-    result = json.loads(text)
-    if not {"x_desired", "x_actual"} <= result.keys():  # stored before the paths were kept
-        raise http_error(422, ["path", "job_id"], "this tracking result predates the "
-                         "recorded tool path; run the job again to plot it", "value_error")
-    dof = len(result["q"][0])
-    names, limits = [f"j{i + 1}" for i in range(dof)], None
+                         f"plots exist for {plottable}", "value_error")
     try:
-        model = registry.get(result["robot"])
+        params = kind.load_params(job.params)
+        result = kind.load_result(text)
+    except ValidationError as exc:  # stored by an older version of the service
+        raise http_error(422, ["path", "job_id"], f"the stored job does not match the current "
+                         f"'{kind.name}' schemas ({error_text(exc)}); run the job again to "
+                         "plot it", "value_error") from None
+    robot_id = kind.robot_id(params)
+    try:
+        model = registry.get(robot_id) if robot_id is not None else None
     except KeyError:  # deleted since: plot without its joint names and speed limits
         model = None
-    if model is not None and model.dof == dof:
-        names, limits = [j.name for j in model.joints], model.velocity_limits
-    tune = f", tuned by {result['tune'].upper()}" if result.get("tune") else ""
-    controller = {"pi": "PI", "default": "default (PI + feed-forward)"}.get(
-        result["controller"], result["controller"])
-    title = f"{result['robot']}: {result['task']['kind']} task, {controller} controller{tune}"
-    return (result["t"], result["q"], result["x_desired"], result["x_actual"], names, title,
-            limits)
+    return kind.plot, params, result, model
 
 
 @router.delete("/{job_id}", response_model=JobRecordOut,

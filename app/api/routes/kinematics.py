@@ -9,7 +9,7 @@ from fastapi import APIRouter, Request, Response
 from starlette.concurrency import run_in_threadpool
 
 from kinematics.drilling import check_drilling_structure, drill_ik
-from kinematics.errors import MethodUnavailableError
+from kinematics.errors import FieldError, MethodUnavailableError
 from kinematics.fk import fk, fk_frames
 from kinematics.ik import prepare_targets, solve_ik
 from kinematics.jacobian import dexterity, jacobian_and_pose
@@ -107,7 +107,7 @@ async def forward_kinematics(robot: RobotDep, body: FKRequest, request: Request)
 
 @router.post("/jacobian", response_model=JacobianResponse)
 def jacobian_endpoint(robot: RobotDep, body: JacobianRequest) -> JacobianResponse:
-    """Geometric Jacobian in the base frame, with manipulability and condition number."""
+    """Geometric Jacobian in the world frame (that of fk), manipulability, condition."""
     q, _ = joint_rows(robot, body.q)
     J, T = jacobian_and_pose(robot, q[0])
     dx = dexterity(robot, J)
@@ -238,9 +238,10 @@ async def drilling_ik(robot: RobotDep, body: DrillIKRequest, request: Request) -
         return _json(await compute(request).run(len(holes) > HEAVY_DRILL_HOLES,
                                                 _drill_ik_answer, robot, holes, body.d7,
                                                 body.roll))
-    except ValueError as exc:
-        field = str(exc).split(":", 1)[0]
-        raise invalid([field if field in ("d7", "roll") else "holes"], str(exc)) from None
+    except FieldError:  # drill_ik's checks name holes, d7 or roll: 422 there
+        raise
+    except ValueError as exc:  # numerics that found no answer for these holes
+        raise invalid(["holes"], str(exc)) from None
 
 
 def _drill_ik_answer(robot: RobotModel, holes: np.ndarray, d7: float, roll: float) -> bytes:

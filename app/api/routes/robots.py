@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Path, Request, Response
 
-from kinematics.cylinders import CylinderError, CylinderSet
+from kinematics.cylinders import CylinderSet
 from kinematics.ik import available_methods
-from kinematics.model import MAX_DOF, ModelError, RobotModel
+from kinematics.model import MAX_DOF, RobotModel
 from kinematics.urdf import to_urdf
 
 from ...registry import ReadOnlyRobotError, RobotConflictError
@@ -78,14 +77,6 @@ _MODEL_BODY_DOC = {
     }
 }
 
-_FIELD_PART = re.compile(r"\[(\d+)\]|([^.\[\]]+)")
-
-
-def field_loc(field_path: str) -> list[str | int]:
-    """``ModelError.field`` as ``loc`` parts: ``joints[2].lower`` -> ``["joints", 2, "lower"]``."""
-    return [int(index) if index else name for index, name in _FIELD_PART.findall(field_path)]
-
-
 def _check_values(data: Any) -> None:
     """422 naming the first non-finite number (JSON ``NaN``/``Infinity`` parse as floats) or
     the first value nested deeper than ``MAX_MODEL_DEPTH``."""
@@ -151,12 +142,11 @@ def create_robot(registry: RegistryDep, data: ModelBody) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise invalid([], "a robot model must be a JSON object")
     _check_values(data)
-    try:
-        model = RobotModel.from_dict(data)
-        if "cylinders" in model.extras:
-            CylinderSet.from_model(model)  # bad cylinder data is the model's fault: 422 now
-    except (ModelError, CylinderError) as exc:
-        raise invalid(field_loc(exc.field), exc.message) from None
+    # ModelError and CylinderError are FieldErrors naming the field (``joints[2].lower`` at
+    # ["body", "joints", 2, "lower"]): the service answers them 422 there.
+    model = RobotModel.from_dict(data)
+    if "cylinders" in model.extras:
+        CylinderSet.from_model(model)  # bad cylinder data is the model's fault: 422 now
     try:
         registry.add(model)
     except RobotConflictError as exc:

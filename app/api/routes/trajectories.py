@@ -8,16 +8,17 @@ import numpy as np
 from fastapi import APIRouter, Request, Response
 from starlette.concurrency import run_in_threadpool
 
+from kinematics.errors import FieldError
 from kinematics.fk import fk
 from kinematics.model import RobotModel
 from planning import Limits, Trajectory, plan_trajectory
 from planning.cartesian import ellipse_points, follow_path, line_points
 from planning.time_scaling import fit_to_limits
 
-from ...compute import FieldProblem, encode_json
+from ...compute import encode_json
 from ...plots import trajectory_png
 from ..deps import RegistryDep
-from ..errors import http_error, invalid
+from ..errors import http_error
 from ..trajectory_schemas import (
     MAX_TRAJECTORY_SAMPLES,
     CartesianRequest,
@@ -27,11 +28,9 @@ from ..trajectory_schemas import (
 
 router = APIRouter(prefix="/trajectories", tags=["trajectories"])
 
-
-def _field_of(message: str) -> str:
-    """Library ValueErrors start with the field name ('durations: ...')."""
-    head = message.split(":", 1)[0]
-    return head if head.isidentifier() else "waypoints"
+# Checks here are those of the request's shape; planning's own checks (durations, rates,
+# waypoints, time scaling, the Cartesian path) raise ``FieldError`` naming the body field,
+# answered 422 there by the service's handler, from a worker process too.
 
 
 def _robot(registry, robot_id: str | None) -> RobotModel | None:
@@ -50,9 +49,9 @@ def _per_joint(value, dof: int, field: str) -> np.ndarray | None:
     arr = np.broadcast_to(np.asarray(value, dtype=float), (dof,)) if np.ndim(value) == 0 \
         else np.asarray(value, dtype=float)
     if arr.shape != (dof,):
-        raise FieldProblem(["limits", field], f"expected one value or {dof} values, got {arr.size}")
+        raise FieldError(["limits", field], f"expected one value or {dof} values, got {arr.size}")
     if np.any(arr <= 0):
-        raise FieldProblem(["limits", field], "limits must be positive")
+        raise FieldError(["limits", field], "limits must be positive")
     return arr
 
 
@@ -73,43 +72,42 @@ def _limits(body: TrajectoryRequest, robot: RobotModel | None, dof: int) -> Limi
 def _check_rows(rows: list[list[float]], dof: int, field: str) -> None:
     for k, row in enumerate(rows):
         if len(row) != dof:
-            raise FieldProblem([field, k], f"expected {dof} joint values, got {len(row)}")
+            raise FieldError([field, k], f"expected {dof} joint values, got {len(row)}")
 
 
 def _plan(body: TrajectoryRequest,
           robot: RobotModel | None) -> tuple[Trajectory, Limits, RobotModel | None]:
     if len(body.waypoints) < 2:
-        raise FieldProblem(["waypoints"], "need at least 2 waypoints")
+        raise FieldError(["waypoints"], "need at least 2 waypoints")
     dof = robot.dof if robot is not None else len(body.waypoints[0])
     if dof == 0:
-        raise FieldProblem(["waypoints", 0], "a waypoint needs at least one joint value")
+        raise FieldError(["waypoints", 0], "a waypoint needs at least one joint value")
     _check_rows(body.waypoints, dof, "waypoints")
     for name in ("velocities", "accelerations"):
         rows = getattr(body, name)
         if rows is not None:
+            if body.method != "quintic":
+                raise FieldError([name], f"{name}: waypoint rates can only be given with "
+                                 "method 'quintic'")
             if len(rows) != len(body.waypoints):
-                raise FieldProblem([name], f"need one row per waypoint ({len(body.waypoints)})")
+                raise FieldError([name], f"need one row per waypoint ({len(body.waypoints)})")
             _check_rows(rows, dof, name)
-    if len(body.durations) != len(body.waypoints) - 1:
-        raise FieldProblem(["durations"], f"need {len(body.waypoints) - 1} durations (one per "
-                      f"segment), got {len(body.durations)}")
-    if any(d <= 0 for d in body.durations):
-        raise FieldProblem(["durations"], "every duration must be positive")
     limits = _limits(body, robot, dof)
+    # Durations (one per segment, each positive) are planning's to check.
     try:
         traj = plan_trajectory(body.method, body.waypoints, body.durations,
                                body.velocities, body.accelerations)
         if body.time_scaling:
             rests = body.velocities is None and body.accelerations is None
             traj = fit_to_limits(traj, limits, per_segment=traj.method == "quintic" and rests)
-    except FieldProblem:
+    except FieldError:
         raise
-    except ValueError as exc:
-        raise FieldProblem([_field_of(str(exc))], str(exc)) from None
+    except ValueError as exc:  # numerics that found no trajectory through these waypoints
+        raise FieldError(["waypoints"], str(exc)) from None
     n = math.floor(traj.duration / body.dt + 1e-9) + 2
     if n > MAX_TRAJECTORY_SAMPLES:
-        raise FieldProblem(["dt"], f"dt = {body.dt} s over {traj.duration:.6g} s gives about {n} "
-                      f"samples; at most {MAX_TRAJECTORY_SAMPLES}: use a larger dt")
+        raise FieldError(["dt"], f"dt = {body.dt} s over {traj.duration:.6g} s gives about "
+                         f"{n} samples; at most {MAX_TRAJECTORY_SAMPLES}: use a larger dt")
     return traj, limits, robot
 
 
@@ -149,11 +147,9 @@ def _heavy(body: TrajectoryRequest) -> bool:
 
 
 async def _computed(request: Request, heavy: bool, fn, *args) -> bytes:
-    """``fn(*args)`` on the compute pool; a ``FieldProblem`` answers 422 naming its field."""
-    try:
-        return await request.app.state.compute.run(heavy, fn, *args)
-    except FieldProblem as exc:
-        raise invalid(exc.loc, exc.msg) from None
+    """``fn(*args)`` on the compute pool (a ``FieldError`` it raises answers 422 naming its
+    field)."""
+    return await request.app.state.compute.run(heavy, fn, *args)
 
 
 def _plan_answer(body: TrajectoryRequest, robot: RobotModel | None) -> bytes:
@@ -209,7 +205,7 @@ async def cartesian(body: CartesianRequest, registry: RegistryDep,
 
 def _cartesian_answer(body: CartesianRequest, robot: RobotModel) -> bytes:
     if body.q0 is not None and len(body.q0) != robot.dof:
-        raise FieldProblem(["q0"], f"expected {robot.dof} joint values, got {len(body.q0)}")
+        raise FieldError(["q0"], f"expected {robot.dof} joint values, got {len(body.q0)}")
     q0 = np.asarray(body.q0 if body.q0 is not None else robot.mid_configuration(), dtype=float)
     T0 = fk(robot, q0)
     if body.rotation is not None:
@@ -217,7 +213,7 @@ def _cartesian_answer(body: CartesianRequest, robot: RobotModel) -> bytes:
         R = np.asarray(rows, dtype=float) if all(len(r) == 3 for r in rows) else np.zeros(0)
         if R.shape != (3, 3) or np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or \
                 np.linalg.det(R) < 0:
-            raise FieldProblem(["rotation"], "must be a 3x3 rotation matrix")
+            raise FieldError(["rotation"], "must be a 3x3 rotation matrix")
     else:
         R = T0[:3, :3]
     path = body.path
@@ -228,15 +224,17 @@ def _cartesian_answer(body: CartesianRequest, robot: RobotModel) -> bytes:
         else:
             pts = ellipse_points(path.center, path.radii, body.points, normal=path.normal,
                                  major=path.major)
-    except ValueError as exc:
-        raise FieldProblem(["path", _field_of(str(exc))], str(exc)) from None
+    except FieldError as exc:  # it names a field of the path (or the number of its points)
+        raise FieldError(["path", *exc.loc], exc.message) from None
     try:
         result = follow_path(robot, pts, R, body.duration, q0)
-    except ValueError as exc:
-        raise FieldProblem(["path"], f"the path cannot be followed: {exc}") from None
+    except FieldError:
+        raise
+    except ValueError as exc:  # a point the tool cannot reach
+        raise FieldError(["path"], f"the path cannot be followed: {exc}") from None
     n = math.floor(body.duration / body.dt + 1e-9) + 2
     if n > MAX_TRAJECTORY_SAMPLES:
-        raise FieldProblem(["dt"], f"at most {MAX_TRAJECTORY_SAMPLES} samples: use a larger dt")
+        raise FieldError(["dt"], f"at most {MAX_TRAJECTORY_SAMPLES} samples: use a larger dt")
     out = _report(result.trajectory, Limits(lower=np.asarray(robot.lower),
                                             upper=np.asarray(robot.upper)), robot, body.dt)
     out["points"] = result.points.tolist()
