@@ -13,12 +13,13 @@ from collections.abc import Callable
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BeforeValidator, Field
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 from pydantic_core import PydanticCustomError
 
 from kinematics.model import MAX_DOF, MAX_LENGTH_MM
 
 __all__ = [
+    "StrictModel",
     "MAX_COORDINATE_MM",
     "MAX_JOINT_VALUE",
     "MAX_DURATION_S",
@@ -55,6 +56,15 @@ MIN_RATE = 1e-6
 MAX_RATE = 1e9
 #: Longest name or id string in a request.
 MAX_NAME_LENGTH = 200
+
+
+class StrictModel(BaseModel):
+    """Base of every model a client sends (request bodies, job parameters, planner knobs)
+    and of job results: unknown fields and NaN/inf are rejected, each error naming its
+    field."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
 
 Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE_MM, le=MAX_COORDINATE_MM)]
 JointValue = Annotated[float, Field(ge=-MAX_JOINT_VALUE, le=MAX_JOINT_VALUE,

@@ -475,6 +475,18 @@ class Store:
         with self._connect() as conn:
             return [_job(r) for r in conn.execute(sql, args).fetchall()]
 
+    def latest_job_for_robot(self, kind: str, robot_id: str, status: str = "succeeded"
+                             ) -> JobRecord | None:
+        """The last submitted job of ``kind`` with ``status`` whose params name ``robot_id``
+        as ``robot`` (exactly, no pattern); None if there is none. One look-up through the
+        ``kind`` index, newest first, reading no job's result."""
+        with self._connect() as conn:
+            row = conn.execute(
+                f"SELECT {_JOB_COLUMNS} FROM jobs WHERE kind = ? AND status = ? "
+                "AND json_extract(params_json, '$.robot') = ? ORDER BY seq DESC LIMIT 1",
+                (kind, status, robot_id)).fetchone()
+        return None if row is None else _job(row)
+
     def job_payload(self, job_id: str) -> dict:
         with self._connect() as conn:
             row = conn.execute("SELECT payload_json FROM jobs WHERE id = ?",

@@ -12,15 +12,18 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from .cylinders import CylinderError as CylinderError
+from .cylinders import CylinderPins as CylinderPins
 from .cylinders import CylinderSet as CylinderSet
 from .cylinders import FourBarCylinder as FourBarCylinder
 from .cylinders import SwingCylinderPair as SwingCylinderPair
 from .cylinders import TriangleCylinder as TriangleCylinder
 from .cylinders import cylinder_set as cylinder_set
+from .cylinders import diagnose_limits as diagnose_limits
 from .drilling import DRILL_D7 as DRILL_D7
 from .drilling import compensation_angles as compensation_angles
 from .drilling import drill_axis as drill_axis
 from .drilling import drill_ik as drill_ik
+from .drilling import roll_joint as roll_joint
 from .errors import FieldError as FieldError
 from .errors import KinematicsError as KinematicsError
 from .errors import MethodUnavailableError as MethodUnavailableError
@@ -30,8 +33,11 @@ from .ik import IKResult as IKResult
 from .ik import IKStatus as IKStatus
 from .ik import NumericOptions as NumericOptions
 from .ik import available_methods as available_methods
+from .ik import position_ik as position_ik
+from .ik import reach as reach
 from .ik import solve_ik as solve_ik
 from .jacobian import Dexterity as Dexterity
+from .jacobian import PositionJacobian as PositionJacobian
 from .jacobian import dexterity as dexterity
 from .jacobian import jacobian as jacobian
 from .jacobian import jacobian_and_pose as jacobian_and_pose
@@ -41,6 +47,7 @@ from .library import builtin_models as builtin_models
 from .model import Joint as Joint
 from .model import ModelError as ModelError
 from .model import RobotModel as RobotModel
+from .numbers import finite_or_none as finite_or_none
 from .rigs import BUILTIN_RIG_IDS as BUILTIN_RIG_IDS
 from .rigs import Rig as Rig
 from .rigs import builtin_rig as builtin_rig
@@ -79,6 +86,7 @@ __all__ = [
     "BUILTIN_RIG_IDS",
     "CalibrationResult",
     "CylinderError",
+    "CylinderPins",
     "CylinderSet",
     "DRILL_D7",
     "Dexterity",
@@ -92,6 +100,7 @@ __all__ = [
     "MethodUnavailableError",
     "ModelError",
     "NumericOptions",
+    "PositionJacobian",
     "Rig",
     "RobotModel",
     "SwingCylinderPair",
@@ -106,8 +115,10 @@ __all__ = [
     "compensation_angles",
     "cylinder_set",
     "dexterity",
+    "diagnose_limits",
     "drill_axis",
     "drill_ik",
+    "finite_or_none",
     "fk",
     "fk_frames",
     "invert_pose",
@@ -116,6 +127,9 @@ __all__ = [
     "make_pose",
     "matrix_to_rpy",
     "pose_errors",
+    "position_ik",
+    "reach",
+    "roll_joint",
     "rot_x",
     "rot_y",
     "rot_z",

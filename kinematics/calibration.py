@@ -321,6 +321,71 @@ def _bounds(
 
 
 # ---- the fit ------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Fit:
+    """What is fitted: the parameters, their values in the input model ``x_model (P,)``,
+    bounds ``lo``, ``hi (P,)``, the regulariser's prior ``x_prior (P,)`` and weight, and the
+    measurements with the weight of their rotation residuals (mm per rad)."""
+
+    model: RobotModel
+    params: tuple[_Param, ...]
+    data: _Data
+    x_model: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    x_prior: np.ndarray
+    rotation_weight: float
+    regularization: float
+    pose_rows: np.ndarray  # indices of the measurements that are poses
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params)
+
+    def residual_parts(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Measured minus model at ``x (P,)``: positions ``(M, 3)`` mm and, for the poses,
+        rotation vectors ``(M_pose, 3)`` rad."""
+        T = fk(_apply(self.model, self.params, x), self.data.q)
+        rows = self.pose_rows
+        r_pos = self.data.position - T[:, :3, 3]
+        r_rot = rotation_log(self.data.rotation[rows] @ np.swapaxes(T[rows, :3, :3], 1, 2))
+        return r_pos, r_rot
+
+    def data_residuals(self, x: np.ndarray) -> np.ndarray:
+        """The measurement rows: positions, then weighted rotations (both mm)."""
+        r_pos, r_rot = self.residual_parts(x)
+        return np.concatenate([r_pos.ravel(), self.rotation_weight * r_rot.ravel()])
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """What the solver minimises: the measurement rows and the Tikhonov rows."""
+        r = self.data_residuals(x)
+        if self.regularization > 0:
+            r = np.concatenate([r, self.regularization * (x - self.x_prior)])
+        return r
+
+
+@dataclass(frozen=True)
+class _Identifiability:
+    """The SVD of the column-scaled measurement Jacobian at a solution (``_identifiability``):
+    column norms ``col (P,)``, singular values ``s (P,)`` largest first, ``Vt (P, P)`` and
+    the numerical ``rank``."""
+
+    col: np.ndarray
+    s: np.ndarray
+    Vt: np.ndarray
+    rank: int
+
+    @property
+    def V_null(self) -> np.ndarray:
+        """``(P - rank, P)``: directions the data do not see (scaled coordinates)."""
+        return self.Vt[self.rank :]
+
+    @property
+    def unidentified(self) -> np.ndarray:
+        """``(P,)`` bool: parameters with a component along an unseen direction."""
+        return np.sum(self.V_null**2, axis=0) > NULL_PARTICIPATION_TOL
+
+
 def calibrate(
     model: RobotModel,
     measurements: Sequence[Mapping[str, Any]],
@@ -365,7 +430,36 @@ def calibrate(
 
     Raises ``ValueError`` naming the field at fault: an unknown or inapplicable parameter, a
     q of the wrong length, a NaN, a non-rigid pose, or fewer residuals than parameters.
+
+    The steps: the parameter vector and its residuals (``_set_up``), the starts
+    (``_starts``), the solve (``_solve``), the identifiability analysis (``_identify``) and
+    the report (``_report``).
     """
+    fit = _set_up(model, measurements, parameters, bounds=bounds,
+                  rotation_weight=rotation_weight, loss=loss, regularization=regularization,
+                  prior=prior, starts=starts)
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    start_list = _starts(fit, x0, starts, rng)
+    best, nfev = _solve(fit, start_list, loss=loss, f_scale=f_scale, tol=tol,
+                        max_nfev=max_nfev)
+    x, ident = _identify(fit, best.x, start_list[0], rank_tol)
+    return _report(fit, x, ident, best, nfev, len(start_list))
+
+
+def _set_up(
+    model: RobotModel,
+    measurements: Sequence[Mapping[str, Any]],
+    parameters: Sequence[str],
+    *,
+    bounds: Mapping[str, tuple[float, float]] | None,
+    rotation_weight: float | None,
+    loss: str,
+    regularization: float,
+    prior: Mapping[str, float] | None,
+    starts: int,
+) -> _Fit:
+    """The parameter vector and the measurements, every input checked (``ValueError``
+    naming the field at fault)."""
     params = _parse(model, parameters)
     names = tuple(p.name for p in params)
     data = _measurements(model, measurements)
@@ -388,116 +482,116 @@ def calibrate(
     if isinstance(starts, bool) or not isinstance(starts, int) or starts < 1:
         raise ValueError("starts: must be a positive integer")
     lo, hi = _bounds(params, bounds)
-    x_model = _values(model, params)
     x_prior = np.zeros(len(params))
     if prior is not None:
         for name, v in _named(prior, names, "prior").items():
             x_prior[names.index(name)] = v
+    return _Fit(model, tuple(params), data, _values(model, params), lo, hi, x_prior,
+                rotation_weight, regularization, np.flatnonzero(data.has_pose))
 
-    pose_rows = np.flatnonzero(data.has_pose)
 
-    def residual_parts(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        T = fk(_apply(model, params, x), data.q)
-        r_pos = data.position - T[:, :3, 3]
-        r_rot = rotation_log(data.rotation[pose_rows] @ np.swapaxes(T[pose_rows, :3, :3], 1, 2))
-        return r_pos, r_rot
-
-    def data_residuals(x: np.ndarray) -> np.ndarray:
-        r_pos, r_rot = residual_parts(x)
-        return np.concatenate([r_pos.ravel(), rotation_weight * r_rot.ravel()])
-
-    def residuals(x: np.ndarray) -> np.ndarray:
-        r = data_residuals(x)
-        if regularization > 0:
-            r = np.concatenate([r, regularization * (x - x_prior)])
-        return r
-
-    # Starts: x0, else the model's values and seeded random ones.
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+def _starts(fit: _Fit, x0: Mapping[str, float] | None, starts: int,
+            rng: np.random.Generator) -> list[np.ndarray]:
+    """Where the solver starts: ``x0`` (over the model's values) alone, else the model's
+    values and ``starts - 1`` seeded random starts."""
     if x0 is not None:
-        first = x_model.copy()
-        for name, v in _named(x0, names, "x0").items():
-            first[names.index(name)] = v
-        start_list = [first]
-    else:
-        spread = np.array([
-            START_SPREAD_ANGLE if p.angular else START_SPREAD_LENGTH * model.length_scale
-            for p in params
-        ])
-        finite = np.isfinite(lo) & np.isfinite(hi)
-        start_list = [x_model.copy()]
-        for _ in range(starts - 1):
-            x = x_model + rng.normal(0.0, spread)
-            x[finite] = rng.uniform(lo[finite], hi[finite])
-            start_list.append(x)
+        first = fit.x_model.copy()
+        for name, v in _named(x0, fit.names, "x0").items():
+            first[fit.names.index(name)] = v
+        return [first]
+    spread = np.array([
+        START_SPREAD_ANGLE if p.angular else START_SPREAD_LENGTH * fit.model.length_scale
+        for p in fit.params
+    ])
+    finite = np.isfinite(fit.lo) & np.isfinite(fit.hi)
+    out = [fit.x_model.copy()]
+    for _ in range(starts - 1):
+        x = fit.x_model + rng.normal(0.0, spread)
+        x[finite] = rng.uniform(fit.lo[finite], fit.hi[finite])
+        out.append(x)
+    return out
+
+
+def _solve(fit: _Fit, start_list: Sequence[np.ndarray], *, loss: str, f_scale: float,
+           tol: float, max_nfev: int | None) -> tuple[Any, int]:
+    """``least_squares`` from every start (nudged inside the bounds): the lowest-cost
+    solution and the residual evaluations of all runs."""
+    lo, hi = fit.lo, fit.hi
     margin = 1e-9 * np.where(np.isfinite(hi - lo), hi - lo, 1.0)
     best = None
     nfev = 0
     for x_start in start_list:
         x_start = np.clip(x_start, lo + margin, hi - margin)
         sol = least_squares(
-            residuals, x_start, jac="3-point", bounds=(lo, hi), loss=loss, f_scale=f_scale,
-            x_scale="jac", xtol=tol, ftol=tol, gtol=tol, max_nfev=max_nfev,
+            fit.residuals, x_start, jac="3-point", bounds=(lo, hi), loss=loss,
+            f_scale=f_scale, x_scale="jac", xtol=tol, ftol=tol, gtol=tol, max_nfev=max_nfev,
         )
         nfev += sol.nfev
         if best is None or sol.cost < best.cost:
             best = sol
     assert best is not None
-    x = best.x
+    return best, nfev
 
-    # Identifiability from the measurement rows only.
-    col, s_full, Vt, rank = _identifiability(data_residuals, x, rank_tol)
-    if rank < len(params) and regularization == 0:
+
+def _identify(fit: _Fit, x: np.ndarray, x_first: np.ndarray, rank_tol: float
+              ) -> tuple[np.ndarray, _Identifiability]:
+    """Identifiability from the measurement rows only, at the solution ``x``; without a
+    regulariser, directions the data cannot see are first moved back to the first start's
+    values ``x_first`` when that keeps the fit. Returns the solution and its analysis."""
+    ident = _identifiability(fit.data_residuals, x, rank_tol)
+    if ident.rank < len(fit.params) and fit.regularization == 0:
         # The solver may wander anywhere along directions the data cannot see (finite-
         # difference noise steers it there, and each start lands elsewhere): undo that, i.e.
         # leave those directions at the first start's values, if doing so keeps the fit (it
         # does for exact degeneracies such as two lengths that only ever appear as a sum).
-        P_null = Vt[rank:].T @ Vt[rank:]
-        x_back = np.clip(x - (P_null @ ((x - start_list[0]) * col)) / col, lo, hi)
-        r_now, r_back = data_residuals(x), data_residuals(x_back)
+        col, V_null = ident.col, ident.V_null
+        P_null = V_null.T @ V_null
+        x_back = np.clip(x - (P_null @ ((x - x_first) * col)) / col, fit.lo, fit.hi)
+        r_now, r_back = fit.data_residuals(x), fit.data_residuals(x_back)
         if r_back @ r_back <= (r_now @ r_now) * (1 + 1e-9) + 1e-18 * len(r_now):
             x = x_back
-            col, s_full, Vt, rank = _identifiability(data_residuals, x, rank_tol)
-    V_null = Vt[rank:]  # (P - rank, P): directions the data do not see (scaled coordinates)
-    unidentified = np.sum(V_null**2, axis=0) > NULL_PARTICIPATION_TOL
+            ident = _identifiability(fit.data_residuals, x, rank_tol)
+    return x, ident
 
-    r_pos, r_rot = residual_parts(x)
-    r_data = data_residuals(x)
+
+def _report(fit: _Fit, x: np.ndarray, ident: _Identifiability, best: Any, nfev: int,
+            n_starts: int) -> CalibrationResult:
+    """The result at the solution ``x``: residuals, covariance and standard errors from the
+    measurement rows, and warnings in words."""
+    names, P = fit.names, len(fit.params)
+    col, rank, unidentified = ident.col, ident.rank, ident.unidentified
+    r_pos, r_rot = fit.residual_parts(x)
+    r_data = fit.data_residuals(x)
     dof_res = len(r_data) - rank
     sigma = math.sqrt(float(r_data @ r_data) / dof_res) if dof_res > 0 else math.nan
-    cov = np.full((len(params), len(params)), np.nan)
+    cov = np.full((P, P), np.nan)
     if rank:
-        V_r = Vt[:rank].T
-        cov = (V_r / s_full[:rank] ** 2) @ V_r.T * sigma**2 / np.outer(col, col)
+        V_r = ident.Vt[:rank].T
+        cov = (V_r / ident.s[:rank] ** 2) @ V_r.T * sigma**2 / np.outer(col, col)
     cov[unidentified, :] = np.nan
     cov[:, unidentified] = np.nan
     std = np.sqrt(np.diag(cov))
 
-    warnings = _null_space_warnings(names, V_null, col, unidentified, regularization)
+    warnings = _null_space_warnings(names, ident.V_null, col, unidentified,
+                                    fit.regularization)
     if dof_res <= 0 and rank:
         warnings.append(
             "the measurements leave no redundancy beyond the identified directions: standard "
             "errors cannot be estimated"
         )
-    with np.errstate(invalid="ignore"):
-        near = 1e-9 * np.maximum(1.0, np.maximum(np.abs(lo), np.abs(hi)))
-        at_bound = (x <= lo + near) | (x >= hi - near)
-    for k in np.flatnonzero(at_bound):
-        warnings.append(
-            f"{names[k]} stopped at a bound ({x[k]:.6g}): the true value may lie outside it"
-        )
+    warnings += _bound_warnings(names, x, fit.lo, fit.hi)
     if best.status <= 0:
         warnings.append(f"least squares did not converge: {best.message}")
 
-    fitted = RobotModel.from_dict(_apply(model, params, x).to_dict())
-    rot_out = np.full((len(data.q), 3), np.nan)
+    pose_rows = fit.pose_rows
+    rot_out = np.full((len(fit.data.q), 3), np.nan)
     rot_out[pose_rows] = r_rot
     rot_norm2 = np.sum(r_rot**2, axis=1)
     return CalibrationResult(
         parameters=names,
         values={n: float(v) for n, v in zip(names, x)},
-        initial={n: float(v) for n, v in zip(names, x_model)},
-        model=fitted,
+        initial={n: float(v) for n, v in zip(names, fit.x_model)},
+        model=RobotModel.from_dict(_apply(fit.model, fit.params, x).to_dict()),
         position_residuals=r_pos,
         rotation_residuals=rot_out,
         rms_position=float(math.sqrt(np.sum(r_pos**2, axis=1).mean())),
@@ -505,7 +599,7 @@ def calibrate(
         sigma=sigma,
         covariance=cov,
         std_errors={n: float(v) for n, v in zip(names, std)},
-        singular_values=s_full,
+        singular_values=ident.s,
         rank=rank,
         unidentified=tuple(n for n, u in zip(names, unidentified) if u),
         warnings=tuple(warnings),
@@ -513,8 +607,18 @@ def calibrate(
         message=str(best.message),
         cost=float(best.cost),
         nfev=int(nfev),
-        starts=len(start_list),
+        starts=n_starts,
     )
+
+
+def _bound_warnings(names: tuple[str, ...], x: np.ndarray, lo: np.ndarray, hi: np.ndarray
+                    ) -> list[str]:
+    """One warning per parameter that stopped at (within 1e-9 relative of) a bound."""
+    with np.errstate(invalid="ignore"):
+        near = 1e-9 * np.maximum(1.0, np.maximum(np.abs(lo), np.abs(hi)))
+        at_bound = (x <= lo + near) | (x >= hi - near)
+    return [f"{names[k]} stopped at a bound ({x[k]:.6g}): the true value may lie outside it"
+            for k in np.flatnonzero(at_bound)]
 
 
 def _central_jacobian(fun: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> np.ndarray:
@@ -531,10 +635,10 @@ def _central_jacobian(fun: Callable[[np.ndarray], np.ndarray], x: np.ndarray) ->
 
 def _identifiability(
     fun: Callable[[np.ndarray], np.ndarray], x: np.ndarray, rank_tol: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+) -> _Identifiability:
     """SVD of the Jacobian of ``fun`` at ``x`` with columns scaled to unit norm.
 
-    Returns the column norms ``(P,)`` (1 for a column that is identically zero: a parameter
+    Holds the column norms ``(P,)`` (1 for a column that is identically zero: a parameter
     the residuals ignore), the singular values ``(P,)`` largest first, ``Vt (P, P)`` whose rows
     past ``rank`` span the null space (in scaled coordinates ``x * col``), and the numerical
     rank (singular values above ``rank_tol`` times the largest).
@@ -547,7 +651,7 @@ def _identifiability(
     s_full[: len(s)] = s
     s_max = s_full[0] if s_full[0] > 0 else 1.0
     rank = int(np.sum(s_full > rank_tol * s_max))
-    return col, s_full, Vt, rank
+    return _Identifiability(col, s_full, Vt, rank)
 
 
 def _null_space_warnings(

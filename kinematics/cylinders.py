@@ -21,7 +21,21 @@ retracted, ``max_length`` the extended length). Cylinder speed (mm/s) is
 ``model.extras``); see ``kinematics/robots/pile_driver.json`` for the format. Each joint is
 driven by at most one mechanism; joints without one (e.g. the pile driver's slewing joint,
 driven by a motor) are passed through. ``check()`` says, in words, where stroke limits and
-joint limits disagree.
+joint limits disagree; ``diagnose_limits`` says, for a configuration outside the joint limits
+(e.g. the nearest IK solution of a pose), what it asks of each joint and cylinder at fault.
+
+Pin points (``CylinderSet.pins``, each mechanism's ``pins``) are given in the *joint plane*
+of the joint a mechanism drives: a 2-D frame (mm) fixed to the carrying link (the link
+before the joint), with its origin on the joint axis, x along the carrying link's reference
+ray and y = axis x x. The driven link's reference ray is at angle ``theta`` (the joint value)
+from x. The data fix each pin's distance from the joint and the angles between pin rays, not
+where the rays point on the links, so the reference rays are a convention: a triangle's rod
+pin lies on the driven link's ray and its barrel pin at ``-sign * phi0`` from the carrying
+link's; a four-bar's stick (N to H) lies along the carrying link's ray, mirrored by ``sign``
+so that K turns with the driven link. Points on the carrying link (barrel pins, H, N, G) keep
+their coordinates as the joint turns; points on the driven link (a triangle's rod pin, K)
+keep theirs turned back by ``theta``. The distance between a cylinder's two pins is its
+``length`` (to rounding), NaN where the mechanism cannot take the joint value.
 """
 
 from __future__ import annotations
@@ -30,6 +44,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from enum import StrEnum
 from functools import lru_cache
 from typing import Any, Protocol
 
@@ -44,12 +59,17 @@ __all__ = [
     "MAX_STROKE_MARGIN",
     "PAIR_LENGTH_TOL",
     "CylinderError",
+    "CylinderLimit",
+    "CylinderPins",
     "CylinderSet",
     "FourBarCylinder",
+    "JointLimit",
+    "LimitCause",
     "Mechanism",
     "SwingCylinderPair",
     "TriangleCylinder",
     "cylinder_set",
+    "diagnose_limits",
 ]
 
 #: Lengths this close (mm) outside a stroke still count as inside (round-off of the data).
@@ -104,6 +124,31 @@ def _nearest_turn(theta: np.ndarray, lower: float, upper: float) -> np.ndarray:
 
 def _deg(x: float) -> str:
     return f"{math.degrees(x):.2f} deg"
+
+
+def _ray(angle, radius: float = 1.0) -> np.ndarray:
+    """Points at ``radius`` along rays at ``angle (*,)`` rad in a plane: ``(*, 2)``."""
+    angle = np.asarray(angle, dtype=float)
+    return radius * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+
+
+@dataclass(frozen=True, eq=False)
+class CylinderPins:
+    """One cylinder's pins at joint values ``theta (*,)``, in the joint plane of the joint it
+    drives (module docstring), mm: ``barrel`` on the carrying side, ``rod`` on the driven side,
+    each ``(*, 2)``. ``linkage``: for a four-bar, its points ``H, N, K, M, G`` ``(*, 2)`` each
+    (``barrel`` is G, ``rod`` is M); empty for the other mechanisms."""
+
+    name: str
+    joint: int
+    barrel: np.ndarray
+    rod: np.ndarray
+    linkage: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def length(self) -> np.ndarray:
+        """Distance between the pins (mm): the cylinder's length, ``(*,)``."""
+        return np.linalg.norm(self.rod - self.barrel, axis=-1)
 
 
 def _check_cylinder(
@@ -209,6 +254,8 @@ class Mechanism(Protocol):
     def dlengths_dtheta(self, theta) -> np.ndarray: ...
 
     def angle_of(self, length, index: int = 0) -> np.ndarray: ...
+
+    def pins(self, theta) -> tuple[CylinderPins, ...]: ...
 
     def check(self, samples: int = ..., tol: float = ..., max_margin: float = ...) -> list[str]:
         ...
@@ -329,6 +376,14 @@ class TriangleCylinder(_OneCylinder):
         theta = (phi - self.phi0) * self.sign
         return _nearest_turn(theta, self.lower, self.upper)
 
+    def pins(self, theta) -> tuple[CylinderPins, ...]:
+        """The pins at ``theta (*,)`` in the joint plane: the barrel pin ``r1`` out at
+        ``-sign * phi0`` (fixed to the carrying link), the rod pin ``r2`` out on the driven
+        link's ray (at ``theta``), so the angle between them is ``phi0 + sign * theta``."""
+        theta = np.asarray(theta, dtype=float)
+        barrel = np.broadcast_to(_ray(-self.sign * self.phi0, self.r1), theta.shape + (2,))
+        return (CylinderPins(self.name, self.joint, barrel, _ray(theta, self.r2)),)
+
     def _invalid_reason(self, theta: np.ndarray) -> str | None:
         phi = self.phi(theta)
         phi_mod = np.mod(phi, _TWO_PI)
@@ -396,6 +451,31 @@ class FourBarCylinder(_OneCylinder):
         """Cylinder length L_MG (mm): ``theta (*,) rad -> (*,) mm`` (NaN where the linkage
         cannot close)."""
         return _side(self.l_mn, self.l_ng, self._angles(theta)["mng"])
+
+    def points(self, theta) -> dict[str, np.ndarray]:
+        """Points H, N, K, M, G of the linkage at ``theta (*,)`` in the joint plane (module
+        docstring), ``(*, 2)`` mm each, from the angles ``length`` uses: H at the origin, N at
+        ``-l_hn`` on x; M is NaN where the linkage cannot close."""
+        a, b, m = self.l_kh, self.l_hn, self.l_mn
+        s = self._angles(theta)
+        khn = s["khn"]
+        # Laid out with N at the origin and H on +x, K on the +y side; then moved so that H
+        # is the origin and mirrored by ``sign``.
+        own = {
+            "H": np.broadcast_to(np.array([b, 0.0]), khn.shape + (2,)),
+            "N": np.zeros(khn.shape + (2,)),
+            "K": np.stack([b - a * np.cos(khn), a * np.sin(khn)], axis=-1),
+            "M": _ray(s["knh"] + s["knm"], m),
+            "G": np.broadcast_to(_ray(-self.angle_gnh, self.l_ng), khn.shape + (2,)),
+        }
+        flip = np.array([1.0, -float(self.sign)])
+        return {key: (p - [b, 0.0]) * flip for key, p in own.items()}
+
+    def pins(self, theta) -> tuple[CylinderPins, ...]:
+        """The cylinder's pins G (barrel, on the stick) and M (rod, on the rocker) at
+        ``theta (*,)`` in the joint plane, with every point of the linkage (``points``)."""
+        P = self.points(theta)
+        return (CylinderPins(self.name, self.joint, P["G"], P["M"], P),)
 
     def dlength_dtheta(self, theta) -> np.ndarray:
         """Analytic ``dL_MG/dtheta`` (mm/rad): ``(*,) -> (*,)``."""
@@ -533,6 +613,10 @@ class SwingCylinderPair:
         """Joint speed (rad/s) from one cylinder's speed (mm/s)."""
         return self.sides[side].joint_speed(theta, length_speed)
 
+    def pins(self, theta) -> tuple[CylinderPins, ...]:
+        """The pins of both cylinders [left, right] at ``theta (*,)`` in the joint plane."""
+        return self.left.pins(theta) + self.right.pins(theta)
+
     lengths = length
     dlengths_dtheta = dlength_dtheta
     angle_of = angle
@@ -637,6 +721,13 @@ class CylinderSet:
             for k, name in enumerate(mech.names):
                 out[name] = dL[..., k]
         return out
+
+    def pins(self, q) -> dict[str, CylinderPins]:
+        """Every cylinder's pins by name, in model order: ``q (*, dof) -> {name:
+        CylinderPins}`` with points ``(*, 2)`` mm in the joint plane of the joint each drives
+        (module docstring). The distance between a cylinder's pins is ``lengths(q)[name]``."""
+        q = self._rows(q, "q")
+        return {p.name: p for mech in self.mechanisms for p in mech.pins(q[..., mech.joint])}
 
     def within_stroke(self, lengths: Mapping[str, Any], tol: float = LENGTH_TOL) -> dict:
         """Whether each given length (mm) lies in its cylinder's stroke: ``{name: (*,) bool}``."""
@@ -827,3 +918,89 @@ def _mechanism(model: RobotModel, data: Any, path: str) -> Mechanism:
 def cylinder_set(model: RobotModel) -> CylinderSet:
     """``CylinderSet.from_model(model)``, built once per model (models are immutable)."""
     return CylinderSet.from_model(model)
+
+
+# ---- why a configuration outside the joint limits cannot be driven --------------------
+
+
+class LimitCause(StrEnum):
+    """What a cylinder makes of a joint value outside its joint's limits."""
+
+    #: The mechanism cannot take the joint value (a linkage that cannot close): no length.
+    CANNOT_CLOSE = "cannot_close"
+    #: The cylinder would be shorter than its retracted length.
+    BELOW_STROKE = "below_stroke"
+    #: The cylinder would be longer than its extended length.
+    BEYOND_STROKE = "beyond_stroke"
+    #: The length is within the stroke and gives back the joint value: only the joint stop
+    #: is in the way.
+    JOINT_STOP = "joint_stop"
+    #: The length is within the stroke but gives another joint value: the joint value lies
+    #: past the mechanism's dead point, where no length of the cylinder reaches.
+    DEAD_POINT = "dead_point"
+
+
+@dataclass(frozen=True)
+class CylinderLimit:
+    """One cylinder driving a joint that is outside its limits: why it cannot serve
+    (``cause``), the length it would need (mm; NaN for ``CANNOT_CLOSE``) and its stroke."""
+
+    name: str
+    cause: LimitCause
+    length: float
+    min_length: float
+    max_length: float
+
+
+@dataclass(frozen=True)
+class JointLimit:
+    """One joint outside its limits: its index and name, the value asked (rad), its limits
+    (rad) and the cylinders driving it (none for a motor-driven joint), in model order."""
+
+    joint: int
+    name: str
+    value: float
+    lower: float
+    upper: float
+    cylinders: tuple[CylinderLimit, ...]
+
+
+#: Joint values this far (rad) outside a limit still count as inside.
+LIMIT_TOL = 1e-9
+#: A length inside the stroke gives back the joint value to this (rad), or the value lies
+#: past a dead point.
+ANGLE_TOL = 1e-6
+
+
+def diagnose_limits(model: RobotModel, q, cylinders: CylinderSet | None = None
+                    ) -> tuple[JointLimit, ...]:
+    """Every joint of ``q (dof,)`` outside its limits, with what it asks of the cylinders
+    driving it (``cylinders``, default ``cylinder_set(model)``); empty when ``q`` is within
+    the limits. Pure: it reports, it never raises for a value the mechanism cannot take."""
+    cyl = cylinder_set(model) if cylinders is None else cylinders
+    q = cyl._rows(q, "q")
+    if q.shape != (model.dof,):
+        raise CylinderError("q", f"must have {model.dof} joint values, got {list(q.shape)}")
+    lengths = cyl.lengths(q)
+    out = []
+    for i, j in enumerate(model.joints):
+        if j.lower - LIMIT_TOL <= q[i] <= j.upper + LIMIT_TOL:
+            continue
+        found = []
+        for mech in (m for m in cyl.mechanisms if m.joint == i):
+            for k, name in enumerate(mech.names):
+                L = float(lengths[name])
+                lo, hi = mech.limits[k]
+                if not math.isfinite(L):
+                    cause = LimitCause.CANNOT_CLOSE
+                elif L < lo:
+                    cause = LimitCause.BELOW_STROKE
+                elif L > hi:
+                    cause = LimitCause.BEYOND_STROKE
+                elif abs(float(mech.angle_of(L, k)) - q[i]) < ANGLE_TOL:
+                    cause = LimitCause.JOINT_STOP
+                else:  # another joint value (or none, NaN) has this length
+                    cause = LimitCause.DEAD_POINT
+                found.append(CylinderLimit(name, cause, L, lo, hi))
+        out.append(JointLimit(i, j.name, float(q[i]), j.lower, j.upper, tuple(found)))
+    return tuple(out)

@@ -27,6 +27,7 @@ Frames and units (docs/conventions.md): holes in the world frame, in which ``fk`
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -39,10 +40,13 @@ from .transforms import invert_pose
 
 __all__ = [
     "DRILL_D7",
+    "ROLL_JOINT",
+    "DrillingJoint",
     "compensation_angles",
     "drill_axis",
     "drill_ik",
     "check_drilling_structure",
+    "roll_joint",
 ]
 
 METHOD = "drilling"
@@ -51,6 +55,8 @@ DRILL_D7 = 4022.0
 #: Twists alpha_{i-1} of the tunnel drilling arm (paper 002, Table 1), rad.
 ALPHAS = (0.0, -math.pi / 2, -math.pi / 2, 0.0, math.pi / 2, math.pi / 2, math.pi / 2)
 TYPES = ("revolute", "revolute", "prismatic", "revolute", "revolute", "revolute", "prismatic")
+#: Index of the roll joint (theta4: the drill's turn about the telescope) in ``q``.
+ROLL_JOINT = 3
 #: Gauss-Newton settings for roll != 0: roll step per continuation stage (rad), iterations
 #: per stage, and the tolerances (mm, rad) that end the last stage.
 ROLL_STAGE = 0.25
@@ -100,6 +106,28 @@ def check_drilling_structure(model: RobotModel) -> None:
             raise ValueError(f"{path}: must be 0 for the drilling arm's closed form")
     if np.abs(model.tool[:3, :3] - np.eye(3)).max() > 1e-12:
         raise ValueError("model.tool: drilling IK needs a tool transform without rotation")
+
+
+@dataclass(frozen=True)
+class DrillingJoint:
+    """One joint of a drilling arm: its index in ``q``, its name and limits (rad or mm)."""
+
+    index: int
+    name: str
+    lower: float
+    upper: float
+
+    def within(self, value: float) -> bool:
+        """Whether ``value`` lies within the joint's limits."""
+        return self.lower <= value <= self.upper
+
+
+def roll_joint(model: RobotModel) -> DrillingJoint:
+    """The drilling arm's roll joint (the one ``drill_ik``'s ``roll`` sets); ``ValueError``
+    naming the field, as ``check_drilling_structure``, if ``model`` is not a drilling arm."""
+    check_drilling_structure(model)
+    j = model.joints[ROLL_JOINT]
+    return DrillingJoint(ROLL_JOINT, j.name, j.lower, j.upper)
 
 
 def _holes(hole_xyz) -> np.ndarray:
@@ -169,10 +197,10 @@ def _newton_roll(
     value, rad), continuing from the roll-0 solutions ``q (N, 7)`` (rows all finite)."""
     free = [0, 1, 2, 4, 5]
     q = q.copy()
-    start = q[:, 3].copy()
+    start = q[:, ROLL_JOINT].copy()
     stages = max(1, math.ceil(abs(roll_q - start.mean()) / ROLL_STAGE)) if len(q) else 1
     for s in range(1, stages + 1):
-        q[:, 3] = start + (roll_q - start) * s / stages
+        q[:, ROLL_JOINT] = start + (roll_q - start) * s / stages
         iters = MAX_ITERATIONS if s == stages else STAGE_ITERATIONS
         for _ in range(iters):
             J, T = jacobian_and_pose(model, q)
@@ -227,7 +255,7 @@ def drill_ik(
     normal = model.base[:3, 0]
     q, reasons = _rule_solution(model, P_base, float(d7))
     ok = np.all(np.isfinite(q), axis=1)
-    if float(roll) + model.joints[3].offset != 0.0 and ok.any():
+    if float(roll) + model.joints[ROLL_JOINT].offset != 0.0 and ok.any():
         # The closed form has the roll D-H angle at 0; continue from it to the asked roll.
         q[ok] = _newton_roll(model, q[ok], P[ok], normal, float(roll))
 

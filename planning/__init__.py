@@ -31,6 +31,13 @@ if TYPE_CHECKING:
     from .polynomials import quintic_segments as quintic_segments
     from .polynomials import sextic_via as sextic_via
     from .polynomials import smooth_spline as smooth_spline
+    from .registry import Algorithm as Algorithm
+    from .registry import Knob as Knob
+    from .registry import algorithm_classes as algorithm_classes
+    from .registry import algorithm_names as algorithm_names
+    from .registry import knobs as knobs
+    from .registry import make as make
+    from .registry import register as register
     from .scene import Box as Box
     from .scene import Capsule as Capsule
     from .scene import Scene as Scene
@@ -76,6 +83,13 @@ _LAZY = {
     "quintic_segments": "polynomials",
     "sextic_via": "polynomials",
     "smooth_spline": "polynomials",
+    "Algorithm": "registry",
+    "Knob": "registry",
+    "algorithm_classes": "registry",
+    "algorithm_names": "registry",
+    "knobs": "registry",
+    "make": "registry",
+    "register": "registry",
     "Box": "scene",
     "Capsule": "scene",
     "Scene": "scene",
@@ -102,6 +116,7 @@ _LAZY = {
 }
 
 __all__ = [
+    "Algorithm",
     "ArmPathResult",
     "Box",
     "Capsule",
@@ -109,6 +124,7 @@ __all__ = [
     "EllipseTask",
     "FacePattern",
     "FacePlan",
+    "Knob",
     "Limits",
     "LineTask",
     "PIGains",
@@ -125,6 +141,8 @@ __all__ = [
     "Trajectory",
     "TuningResult",
     "Violation",
+    "algorithm_classes",
+    "algorithm_names",
     "allocate_holes",
     "compare_planners",
     "ellipse_points",
@@ -132,7 +150,9 @@ __all__ = [
     "fit_to_limits",
     "follow_path",
     "format_table3",
+    "knobs",
     "line_points",
+    "make",
     "path_length",
     "plan_arm_path",
     "plan_face",
@@ -140,6 +160,7 @@ __all__ = [
     "plan_trajectory",
     "quintic_bspline",
     "quintic_segments",
+    "register",
     "sequence_holes",
     "sextic_via",
     "simulate",

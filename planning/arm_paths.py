@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -38,8 +37,10 @@ import numpy as np
 from kinematics.cylinders import CylinderError, CylinderSet
 from kinematics.errors import FieldError
 from kinematics.fk import fk, fk_frames
-from kinematics.jacobian import jacobian_and_pose
+from kinematics.ik.position import REACH_TOL, position_ik, reach
+from kinematics.ik.position import position_dls as _dls
 from kinematics.model import RobotModel
+from kinematics.numbers import finite_or_none
 
 from .bspline import quintic_bspline
 from .optimisers.base import ProgressFn
@@ -48,21 +49,12 @@ from .scene import Capsule, Scene
 from .status import PlanStatus
 from .trajectory import Trajectory
 
-__all__ = ["ArmPathResult", "plan_arm_path", "position_ik", "link_capsules",
-           "arm_clearance", "reach"]
+__all__ = ["ArmPathResult", "plan_arm_path", "link_capsules", "arm_clearance"]
 
 #: Default link radius (mm) of the capsules around each link.
 DEFAULT_LINK_RADIUS = 60.0
-#: Largest tool position error (mm) accepted as reaching a point.
-REACH_TOL = 1e-2
-#: Fraction of each joint range kept clear of the limits by the IK along a path, so that the
-#: spline through the joint waypoints, which can overshoot a waypoint slightly where a joint
-#: rides its stop, stays within the limits.
-LIMIT_INSET = 0.005
 #: Null-space gain towards mid-range while following the path (per IK iteration).
 CENTRING = 0.02
-#: Configurations in the seeded table that starts the endpoint IK.
-SEED_TABLE = 4096
 
 
 @dataclass(frozen=True)
@@ -98,7 +90,7 @@ class ArmPathResult:
         (sampled every ``dt`` s, default duration/200) and ``cylinders``."""
         out = self.tool.to_dict()
         out.update(success=self.success, status=self.status.value, message=self.message,
-                   arm_min_clearance=_num(self.arm_min_clearance),
+                   arm_min_clearance=finite_or_none(self.arm_min_clearance),
                    joint_path=self.q.tolist(), tool_samples=self.points.tolist())
         if self.trajectory is not None:
             step = dt or self.trajectory.duration / 200
@@ -114,84 +106,6 @@ class ArmPathResult:
         else:
             out["cylinders"] = None
         return out
-
-
-def _num(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
-
-
-# ---- position IK ---------------------------------------------------------------------------
-def _dls(model: RobotModel, Q: np.ndarray, target: np.ndarray, iterations: int,
-         tol: float, centring: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """Damped least squares on the tool position for a batch ``Q (B, dof)`` towards
-    ``target (3,)`` or ``(B, 3)``, projected onto the joint limits less ``LIMIT_INSET``.
-
-    ``centring`` > 0 adds a null-space step (on the first iteration) of that gain towards
-    mid-range (arms with more than 3 joints have freedom left over; using it keeps joints
-    off their stops). Returns ``(Q, error mm)``."""
-    lam2 = (1e-3 * model.length_scale) ** 2
-    mid, span = model.mid_configuration(), model.upper - model.lower
-    span = np.where(np.isfinite(span) & (span > 0), span, 1.0)
-    lower, upper = model.lower + LIMIT_INSET * span, model.upper - LIMIT_INSET * span
-    Q = np.array(Q, dtype=float)
-    err = np.full(len(Q), np.inf)
-    for it in range(iterations):
-        J, T = jacobian_and_pose(model, Q)
-        e = target - T[:, :3, 3]
-        err = np.linalg.norm(e, axis=1)
-        if np.all(err < tol) and (centring == 0 or it > 0):
-            break
-        Jp = J[:, :3, :]
-        A = Jp @ np.swapaxes(Jp, 1, 2) + lam2 * np.eye(3)
-        Jpinv = np.swapaxes(Jp, 1, 2) @ np.linalg.inv(A)  # (B, dof, 3)
-        dq = np.einsum("bij,bj->bi", Jpinv, e)
-        if centring and it == 0:  # one centring step, then converge on the position
-            g = centring * (mid - Q) / span * span.min()
-            dq += g - np.einsum("bij,bjk,bk->bi", Jpinv, Jp, g)
-        Q = np.clip(Q + dq, lower, upper)
-    else:
-        err = np.linalg.norm(target - fk(model, Q)[:, :3, 3], axis=1)
-    return Q, err
-
-
-@lru_cache(maxsize=16)
-def _table(model: RobotModel, size: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    rng = np.random.default_rng(seed)
-    q = rng.uniform(model.lower, model.upper, size=(size, model.dof))
-    # Joints that do not move the tool point start mid-range rather than anywhere.
-    q0 = np.tile(model.mid_configuration(), (1, 1))
-    J = jacobian_and_pose(model, q0)[0][0, :3]
-    idle = np.all(np.abs(J) < 1e-9, axis=0)
-    q[:, idle] = model.mid_configuration()[idle]
-    return q, fk(model, q)[:, :3, 3]
-
-
-def reach(model: RobotModel) -> float:
-    """Largest distance (mm) of the tool point from the base origin over a seeded sample of
-    in-limit configurations: the arm's reach, to within the sampling."""
-    return float(np.max(np.linalg.norm(_table(model, SEED_TABLE, 0)[1] - model.base[:3, 3],
-                                       axis=1)))
-
-
-def position_ik(model: RobotModel, point, q0=None, starts: int = 16,
-                iterations: int = 100) -> tuple[np.ndarray | None, float]:
-    """Joints ``(dof,)`` within limits that put the tool point at ``point (3,)`` mm, or None;
-    also the least position error (mm) found. Starts from ``q0`` (if given) and the
-    ``starts`` table configurations nearest the point; returns the solution closest to
-    ``q0`` (or to mid-range)."""
-    point = np.asarray(point, dtype=float)
-    Qt, Pt = _table(model, SEED_TABLE, 0)
-    near = np.argsort(np.linalg.norm(Pt - point, axis=1))[:starts]
-    Q = Qt[near]
-    if q0 is not None:
-        Q = np.vstack([np.clip(q0, model.lower, model.upper), Q])
-    Q, err = _dls(model, Q, point, iterations, REACH_TOL / 10)
-    ok = err < REACH_TOL
-    if not ok.any():
-        return None, float(err.min())
-    ref = model.mid_configuration() if q0 is None else np.asarray(q0, float)
-    cand = Q[ok]
-    return cand[np.argmin(np.linalg.norm(cand - ref, axis=1))], float(err[ok].min())
 
 
 # ---- whole-arm clearance ----------------------------------------------------------------
@@ -262,6 +176,38 @@ def _link_name(model: RobotModel, k: int) -> str:
     return f"link {k} (after joint '{model.joints[k].name}')" if k > 0 else "link 0 (base)"
 
 
+class _Failed(Exception):
+    """Raised by a step of ``plan_arm_path`` that ends the plan with a failed ``result``."""
+
+    def __init__(self, result: ArmPathResult) -> None:
+        super().__init__(result.message)
+        self.result = result
+
+
+@dataclass(frozen=True)
+class _Samples:
+    """The tool path sampled for IK: ``points (S, 3)`` mm at arc lengths ``s (S,)`` mm, and
+    the joints ``q (S, dof)`` that put the tool there."""
+
+    points: np.ndarray
+    s: np.ndarray
+    q: np.ndarray
+
+
+@dataclass(frozen=True)
+class _TrajectoryCheck:
+    """The joint trajectory checked on a fine grid: within the joint limits, the least arm
+    clearance (mm) and the largest tool departure from the tool path (mm); cylinder lengths
+    at the samples (mm, by name) and whether they stay within stroke on both (None for a
+    robot without cylinders)."""
+
+    within_limits: bool
+    min_clearance: float
+    tool_deviation: float
+    cylinders: dict[str, np.ndarray] | None
+    cylinders_within_stroke: bool | None
+
+
 def plan_arm_path(
     model: RobotModel,
     scene: Scene,
@@ -290,17 +236,57 @@ def plan_arm_path(
     axis (``base_keep_out``; the arm itself is checked against the scene only). Invalid
     input raises ``FieldError`` naming the field; unreachable endpoints, a tool path the arm
     cannot follow and arm collisions give a failed ``status``.
+
+    The steps, as in the module docstring: the endpoints' joints (``_endpoint_joints``),
+    the tool path (``_tool_scene``, ``plan_path``), IK along it (``_follow``), whole-arm
+    clearance (``_check_arm``), the joint trajectory (``_joint_trajectory``) and its check
+    with the cylinders (``_check_trajectory``), and the result (``_result``).
     """
+    radii = _checked_options(model, link_radius, spacing=spacing,
+                             waypoint_spacing=waypoint_spacing,
+                             clearance_slack=clearance_slack, duration=duration)
+    start = scene.check_endpoint(start, "start")
+    goal = scene.check_endpoint(goal, "goal")
+    report = progress or (lambda f: None)
+    try:
+        q0, q_goal = _endpoint_joints(model, start, goal, q_start, algorithm)
+        report(0.05)
+        tool_scene = _tool_scene(model, scene, radii, clearance_slack, keep_out_radius)
+        tool_scene.check_endpoint(start, "start")
+        tool_scene.check_endpoint(goal, "goal")
+        tool = plan_path(tool_scene, start, goal, algorithm, seed, params,
+                         progress=lambda f: report(0.05 + 0.6 * f))
+        if not tool.success:
+            raise _Failed(_fail(tool, tool.status, tool.message))
+        samples = _follow(model, tool, spacing, q0)
+        report(0.8)
+        arm_min = _check_arm(model, scene, radii, tool, samples)
+    except _Failed as failed:
+        return failed.result
+    traj, waypoints = _joint_trajectory(samples, waypoint_spacing, duration)
+    check = _check_trajectory(model, scene, radii, tool, samples, traj)
+    report(1.0)
+    return _result(tool, samples, traj, waypoints, check, arm_min, q_goal,
+                   scene.safety_margin)
+
+
+def _checked_options(model: RobotModel, link_radius, *, spacing: float,
+                     waypoint_spacing: float, clearance_slack: float,
+                     duration: float) -> np.ndarray:
+    """``FieldError`` naming an option out of range; the link radii ``(dof,)`` mm."""
     if not (isinstance(clearance_slack, int | float) and clearance_slack >= 0):
         raise FieldError("clearance_slack", "clearance_slack must be a non-negative number")
     for name, value in (("spacing", spacing), ("waypoint_spacing", waypoint_spacing),
                         ("duration", duration)):
         if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
             raise FieldError(name, f"{name} must be a positive number")
-    radii = _radii(model, link_radius)
-    start = scene.check_endpoint(start, "start")
-    goal = scene.check_endpoint(goal, "goal")
-    report = progress or (lambda f: None)
+    return _radii(model, link_radius)
+
+
+def _endpoint_joints(model: RobotModel, start: np.ndarray, goal: np.ndarray, q_start,
+                     algorithm: str) -> tuple[np.ndarray, np.ndarray]:
+    """Joints at the start (``q_start``, checked, or position IK) and at the goal (position
+    IK). ``_Failed`` (``unreachable``, saying why) for an endpoint out of reach."""
     nothing = PathResult(np.empty((0, 3)), math.inf, math.nan, 0.0, np.empty(0), algorithm,
                          0, PlanStatus.UNREACHABLE, "not planned")
     if q_start is not None:
@@ -316,52 +302,74 @@ def plan_arm_path(
     else:
         q0, err = position_ik(model, start)
         if q0 is None:
-            return _fail(nothing, PlanStatus.UNREACHABLE,
-                         _unreachable(model, "start", start, err))
+            raise _Failed(_fail(nothing, PlanStatus.UNREACHABLE,
+                                _unreachable(model, "start", start, err)))
     q_goal, err = position_ik(model, goal)
     if q_goal is None:
-        return _fail(nothing, PlanStatus.UNREACHABLE, _unreachable(model, "goal", goal, err))
-    report(0.05)
+        raise _Failed(_fail(nothing, PlanStatus.UNREACHABLE,
+                            _unreachable(model, "goal", goal, err)))
+    return q0, q_goal
 
-    # The tool point carries the end of the last links: its path keeps their radius (the
-    # largest link radius) on top of the safety margin, plus ``clearance_slack`` for the
-    # joint spline's small departures from the path between waypoints.
+
+def _tool_scene(model: RobotModel, scene: Scene, radii: np.ndarray, clearance_slack: float,
+                keep_out_radius: float | None) -> Scene:
+    """The scene the tool path is planned in. The tool point carries the end of the last
+    links: its path keeps their radius (the largest link radius) on top of the safety
+    margin, plus ``clearance_slack`` for the joint spline's small departures from the path
+    between waypoints; with ``keep_out_radius``, also ``base_keep_out``."""
     tool_scene = Scene(scene.lower, scene.upper, scene.obstacles,
                        scene.safety_margin + float(radii.max()) + clearance_slack)
     if keep_out_radius is not None:
         if not (math.isfinite(keep_out_radius) and keep_out_radius > 0):
             raise FieldError("keep_out_radius", "keep_out_radius must be a positive number")
         tool_scene = tool_scene.with_obstacles([base_keep_out(model, keep_out_radius)])
-    tool_scene.check_endpoint(start, "start")
-    tool_scene.check_endpoint(goal, "goal")
-    tool = plan_path(tool_scene, start, goal, algorithm, seed, params,
-                     progress=lambda f: report(0.05 + 0.6 * f))
-    if not tool.success:
-        return _fail(tool, tool.status, tool.message)
+    return tool_scene
+
+
+def _follow(model: RobotModel, tool: PathResult, spacing: float, q0: np.ndarray) -> _Samples:
+    """The tool path every ``spacing`` mm, each sample solved by damped least squares from
+    the previous one's joints (within the limits, centred). ``_Failed`` (``unreachable``,
+    naming where) at the first sample out of reach."""
     points, s = _resample(tool.path, spacing)
     Q = np.empty((len(points), model.dof))
     q = q0
     for i, p in enumerate(points):
         qn, e = _dls(model, q[None], p, 50, REACH_TOL / 10, centring=CENTRING)
         if e[0] > REACH_TOL:
-            return _fail(tool, PlanStatus.UNREACHABLE,
-                         f"the tool path leaves the arm's reach at {s[i]:.0f} mm along "
-                               f"it, {np.round(p, 1).tolist()} mm (closest reachable "
-                               f"{e[0]:.1f} mm away)", points=points[:i], s=s[:i], q=Q[:i])
+            raise _Failed(_fail(
+                tool, PlanStatus.UNREACHABLE,
+                f"the tool path leaves the arm's reach at {s[i]:.0f} mm along it, "
+                f"{np.round(p, 1).tolist()} mm (closest reachable {e[0]:.1f} mm away)",
+                points=points[:i], s=s[:i], q=Q[:i]))
         q = qn[0]
         Q[i] = q
-    report(0.8)
-    C = arm_clearance(model, scene, Q, radii) if scene.obstacles else \
-        np.full((len(Q), model.dof, 1), np.inf)
+    return _Samples(points, s, Q)
+
+
+def _check_arm(model: RobotModel, scene: Scene, radii: np.ndarray, tool: PathResult,
+               samples: _Samples) -> float:
+    """The least clearance (mm) of any link to any obstacle over the samples; ``_Failed``
+    (``collision``, naming the link, the obstacle and where) below the safety margin."""
+    C = arm_clearance(model, scene, samples.q, radii) if scene.obstacles else \
+        np.full((len(samples.q), model.dof, 1), np.inf)
     arm_min = float(C.min())
     if arm_min < scene.safety_margin:
         i, k, j = np.unravel_index(int(np.argmin(C)), C.shape)
-        return _fail(tool, PlanStatus.COLLISION,
-                     f"the arm hits an obstacle: {_link_name(model, int(k))} comes "
-                           f"{C[i, k, j]:.1f} mm from obstacles[{j}] (needs "
-                           f"{scene.safety_margin} mm) at {s[i]:.0f} mm along the tool path",
-                     points=points, s=s, q=Q, arm_min_clearance=arm_min)
-    # Joint trajectory: waypoints every ``waypoint_spacing`` mm, timed by arc length.
+        raise _Failed(_fail(
+            tool, PlanStatus.COLLISION,
+            f"the arm hits an obstacle: {_link_name(model, int(k))} comes "
+            f"{C[i, k, j]:.1f} mm from obstacles[{j}] (needs {scene.safety_margin} mm) at "
+            f"{samples.s[i]:.0f} mm along the tool path",
+            points=samples.points, s=samples.s, q=samples.q, arm_min_clearance=arm_min))
+    return arm_min
+
+
+def _joint_trajectory(samples: _Samples, waypoint_spacing: float, duration: float
+                      ) -> tuple[Trajectory, np.ndarray]:
+    """The quintic B-spline through the joints every ``waypoint_spacing`` mm of tool path
+    (first and last sample included), timed by arc length over ``duration`` s; and the
+    indices of the samples it passes through."""
+    s = samples.s
     n_wp = max(1, math.ceil(s[-1] / waypoint_spacing)) if s[-1] > 0 else 1
     idx = np.unique(np.searchsorted(s, np.linspace(0, s[-1], n_wp + 1)))
     idx[-1] = len(s) - 1
@@ -371,8 +379,14 @@ def plan_arm_path(
     durations = np.diff(s[idx]) / max(s[-1], 1e-12) * duration
     if np.any(durations <= 0):
         durations = np.full(len(idx) - 1, duration / (len(idx) - 1))
-    traj = quintic_bspline(Q[idx], durations)
-    t_check = np.linspace(0.0, traj.duration, max(200, 2 * len(s)))
+    return quintic_bspline(samples.q[idx], durations), idx
+
+
+def _check_trajectory(model: RobotModel, scene: Scene, radii: np.ndarray, tool: PathResult,
+                      samples: _Samples, traj: Trajectory) -> _TrajectoryCheck:
+    """``traj`` on a grid of at least 200 and twice the samples' count: joint limits, arm
+    clearance, tool departure from the tool path; cylinder lengths and strokes."""
+    t_check = np.linspace(0.0, traj.duration, max(200, 2 * len(samples.s)))
     Qt = traj.evaluate(t_check)
     limits_ok = bool(np.all(model.within_limits(Qt, tol=1e-6)))
     Ct = arm_clearance(model, scene, Qt, radii).min() if scene.obstacles else math.inf
@@ -383,27 +397,38 @@ def plan_arm_path(
     except CylinderError:
         cs = None
     if cs is not None:
-        cyl = cs.lengths(Q)
+        cyl = cs.lengths(samples.q)
         ok_t = cs.within_stroke(cs.lengths(Qt), tol=1e-6)
         cyl_ok = bool(all(np.all(v) for v in cs.within_stroke(cyl).values())
                       and all(np.all(v) for v in ok_t.values()))
-    report(1.0)
-    extra = {"waypoints": Q[idx].tolist(), "trajectory_min_clearance": float(Ct),
-             "trajectory_within_limits": limits_ok, "trajectory_tool_deviation": tool_dev,
+    return _TrajectoryCheck(limits_ok, float(Ct), tool_dev, cyl, cyl_ok)
+
+
+def _result(tool: PathResult, samples: _Samples, traj: Trajectory, waypoints: np.ndarray,
+            check: _TrajectoryCheck, arm_min: float, q_goal: np.ndarray,
+            safety_margin: float) -> ArmPathResult:
+    """The planned arm path; its status that of the first problem the trajectory check
+    found (limits, clearance, cylinder strokes), every problem in its message."""
+    extra = {"waypoints": samples.q[waypoints].tolist(),
+             "trajectory_min_clearance": check.min_clearance,
+             "trajectory_within_limits": check.within_limits,
+             "trajectory_tool_deviation": check.tool_deviation,
              "q_goal_ik": q_goal.tolist()}
     problems: list[tuple[PlanStatus, str]] = []
-    if not limits_ok:
+    if not check.within_limits:
         problems.append((PlanStatus.OUT_OF_LIMITS,
                          "the joint trajectory leaves the joint limits between waypoints"))
-    if Ct < scene.safety_margin:
+    if check.min_clearance < safety_margin:
         problems.append((PlanStatus.COLLISION,
-                         f"the joint trajectory brings the arm {Ct:.1f} mm from an obstacle "
-                         "between waypoints (try a smaller waypoint_spacing)"))
-    if cyl_ok is False:
+                         f"the joint trajectory brings the arm {check.min_clearance:.1f} mm "
+                         "from an obstacle between waypoints (try a smaller "
+                         "waypoint_spacing)"))
+    if check.cylinders_within_stroke is False:
         problems.append((PlanStatus.OUT_OF_LIMITS, "a cylinder leaves its stroke"))
     return ArmPathResult(
-        tool=tool, points=points, s=s, q=Q, trajectory=traj, cylinders=cyl,
-        cylinders_within_stroke=cyl_ok, arm_min_clearance=arm_min,
+        tool=tool, points=samples.points, s=samples.s, q=samples.q, trajectory=traj,
+        cylinders=check.cylinders, cylinders_within_stroke=check.cylinders_within_stroke,
+        arm_min_clearance=arm_min,
         status=problems[0][0] if problems else PlanStatus.OK,
         message="; ".join(why for _, why in problems) if problems else
         "clear tool path, reachable at every sample, whole arm clear", extra=extra)

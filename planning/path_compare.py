@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from kinematics.errors import FieldError
+from kinematics.numbers import finite_or_none
 
 from .paths import ALGORITHMS, PathResult, plan_path
 from .scene import Scene
@@ -39,7 +40,7 @@ class CompareRow:
     mean_evaluations: float
 
     def to_dict(self) -> dict[str, Any]:
-        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+        return {k: finite_or_none(v) if isinstance(v, float) else v
                 for k, v in asdict(self).items()}
 
 

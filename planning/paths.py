@@ -18,8 +18,6 @@ Lengths in mm, times in s. Paths are ``(n, 3)`` polylines from start to goal.
 
 from __future__ import annotations
 
-import dataclasses
-import importlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -28,8 +26,10 @@ from typing import Any
 import numpy as np
 
 from kinematics.errors import FieldError
+from kinematics.numbers import finite_or_none
 
 from .optimisers.base import Problem, ProgressFn
+from .registry import algorithm_names, make
 from .scene import Scene
 from .status import PlanStatus
 
@@ -43,17 +43,8 @@ __all__ = [
     "make_optimiser",
 ]
 
-#: Every planner ``plan_path`` knows.
-ALGORITHMS = ("wolfpack_improved", "wolfpack", "ga", "aca", "afsa", "rrt_star", "auto")
-
-#: Optimiser class of each metaheuristic: (module, class name, preset classmethod or None).
-_OPTIMISERS = {
-    "wolfpack": ("planning.optimisers.wolfpack", "WolfPack", None),
-    "wolfpack_improved": ("planning.optimisers.wolfpack_improved", "ImprovedWolfPack", None),
-    "ga": ("planning.optimisers.ga", "GeneticAlgorithm", "paper_000"),
-    "afsa": ("planning.optimisers.afsa", "FishSwarm", None),
-    "aca": ("planning.optimisers.aca", "AntColony", None),
-}
+#: Every planner ``plan_path`` knows: the ``path`` family of ``planning.registry``.
+ALGORITHMS = algorithm_names("path")
 
 #: Intermediate waypoints of the encoding per algorithm. The GA's is paper 000's chromosome
 #: length (5); the paper gives none for the wolves and the fish, which get the same 5.
@@ -65,8 +56,6 @@ DEFAULT_PENALTY = 1000.0
 SLACK_FRACTION = 1e-4
 #: Random shortcuts tried after the greedy pass.
 DEFAULT_RANDOM_SHORTCUTS = 100
-
-_COMMON_PARAMS = {"waypoints", "penalty", "max_evaluations", "shortcut", "random_shortcuts"}
 
 
 def path_length(path) -> float:
@@ -154,22 +143,19 @@ class PathResult:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (inf and NaN become None)."""
-
-        def num(x: float) -> float | None:
-            return float(x) if math.isfinite(x) else None
-
         return {
             "path": self.path.tolist(),
-            "length": num(self.length),
-            "min_clearance": num(self.min_clearance),
+            "length": finite_or_none(self.length),
+            "min_clearance": finite_or_none(self.min_clearance),
             "runtime_s": self.runtime_s,
-            "convergence": [num(v) for v in np.asarray(self.convergence, dtype=float)],
+            "convergence": [finite_or_none(v)
+                            for v in np.asarray(self.convergence, dtype=float)],
             "algorithm": self.algorithm,
             "evaluations": self.evaluations,
             "success": self.success,
             "status": self.status.value,
             "message": self.message,
-            "raw_length": num(self.raw_length),
+            "raw_length": finite_or_none(self.raw_length),
         }
 
 
@@ -230,24 +216,10 @@ def shortcut(scene: Scene, path, rng: np.random.Generator | None = None,
 
 def make_optimiser(algorithm: str, params: dict[str, Any] | None = None):
     """The optimiser dataclass of a metaheuristic with ``params`` overriding its defaults
-    (the paper's). ``FieldError`` naming ``algorithm``, an unknown ``params.<name>``, or
-    ``params`` when the values do not go together."""
-    if algorithm not in _OPTIMISERS:
-        raise FieldError("algorithm", f"algorithm must be one of {', '.join(_OPTIMISERS)}, "
-                         f"got {algorithm!r}")
-    module, name, preset = _OPTIMISERS[algorithm]
-    cls = getattr(importlib.import_module(module), name)
-    base = getattr(cls, preset)() if preset else cls()
-    params = dict(params or {})
-    names = {f.name for f in dataclasses.fields(cls)}
-    for key in params:
-        if key not in names:
-            raise FieldError(("params", key), f"params.{key} is not a parameter of "
-                             f"{algorithm}; known: {', '.join(sorted(names | _COMMON_PARAMS))}")
-    try:
-        return dataclasses.replace(base, **params)
-    except (TypeError, ValueError) as exc:
-        raise FieldError("params", f"params: {exc}") from None
+    (the paper's): ``registry.make("path", algorithm, params)``. ``FieldError`` naming
+    ``algorithm``, an unknown ``params.<name>``, or ``params`` when the values do not go
+    together."""
+    return make("path", algorithm, params)
 
 
 def _heartbeat(problem: Problem, progress: ProgressFn, every_s: float = 0.2) -> Problem:

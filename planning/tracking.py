@@ -67,15 +67,15 @@ from typing import Literal
 import numpy as np
 
 from kinematics.ik.numeric import limit_gradient
-from kinematics.jacobian import jacobian_and_pose
+from kinematics.jacobian import PositionJacobian
 from kinematics.model import RobotModel
 
 from .optimisers.acor import ACOR
 from .optimisers.base import OptimResult, Problem, ProgressFn
 from .optimisers.ga import GeneticAlgorithm
-from .optimisers.gwo import GWO
 from .optimisers.hgso import HGSO
 from .optimisers.pso import PSO
+from .registry import algorithm_classes, make
 
 __all__ = [
     "LineTask",
@@ -93,7 +93,6 @@ __all__ = [
     "desired_path",
     "simulate",
     "tracking_fitness",
-    "PositionJacobian",
     "TUNERS",
     "make_tuner",
     "tuner_budget",
@@ -312,72 +311,6 @@ def default_start(model: RobotModel) -> np.ndarray:
     return q
 
 
-class PositionJacobian:
-    """Tool position and position Jacobian, batched: ``q (P, dof) -> ((P, 3), (P, 3, dof))``.
-
-    For all-revolute product-of-exponentials models (the 9-DOF arm) the chain is composed by
-    a parallel prefix product over the joints, about twice as fast as the general
-    ``kinematics.jacobian.jacobian_and_pose`` (the simulation calls it at every step); other
-    models use that function. Both agree to rounding (tested).
-    """
-
-    def __init__(self, model: RobotModel) -> None:
-        self.model = model
-        self.fast = model.convention == "poe" and bool(np.all(model.revolute))
-        if not self.fast:
-            return
-        w = np.array([j.axis for j in model.joints], dtype=float)
-        self._w = w / np.linalg.norm(w, axis=1, keepdims=True)
-        self._p = np.array([j.point if j.point is not None else (0.0, 0.0, 0.0)
-                            for j in model.joints], dtype=float)
-        self._offset = np.array([j.offset for j in model.joints], dtype=float)
-        K = np.zeros((model.dof, 3, 3))
-        K[:, 0, 1], K[:, 0, 2] = -self._w[:, 2], self._w[:, 1]
-        K[:, 1, 0], K[:, 1, 2] = self._w[:, 2], -self._w[:, 0]
-        K[:, 2, 0], K[:, 2, 1] = -self._w[:, 1], self._w[:, 0]
-        self._K, self._K2 = K, K @ K
-        self._Kp = (K @ self._p[:, :, None])[..., 0]
-        self._K2p = (self._K2 @ self._p[:, :, None])[..., 0]
-        self._eye = np.eye(3)
-        self._axis_point = np.zeros((model.dof, 4, 2))  # homogeneous axis (w, 0), point (p, 1)
-        self._axis_point[:, :3, 0], self._axis_point[:, :3, 1] = self._w, self._p
-        self._axis_point[:, 3, 1] = 1.0
-        self._tool_h = np.append((np.asarray(model.home) @ np.asarray(model.tool))[:3, 3], 1.0)
-        self._base = np.asarray(model.base, dtype=float)
-        self._base_is_identity = bool(np.allclose(self._base, np.eye(4), rtol=0, atol=0))
-
-    def __call__(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        if not self.fast:
-            J, T = jacobian_and_pose(self.model, q)
-            return T[:, :3, 3], J[:, :3]
-        P, n = q.shape
-        th = q + self._offset
-        s, c = np.sin(th)[..., None], np.cos(th)[..., None]
-        # Joint i: rotation R_i about its axis through p_i, i.e. [R_i, (I - R_i) p_i] with
-        # R_i = I + s K + (1 - c) K^2 (Rodrigues), so (I - R_i) p_i = -s K p - (1 - c) K^2 p.
-        T = np.zeros((P, n, 4, 4))
-        T[..., :3, :3] = self._eye + s[..., None] * self._K + (1.0 - c[..., None]) * self._K2
-        T[..., :3, 3] = -s * self._Kp - (1.0 - c) * self._K2p
-        T[..., 3, 3] = 1.0
-        d = 1
-        while d < n:  # Hillis-Steele scan: T[:, i] becomes T_1 ... T_i
-            T[:, d:] = T[:, :-d] @ T[:, d:]
-            d *= 2
-        # Joint i's own motion fixes its axis and point, so T_1 ... T_i maps them to the world
-        # as T_1 ... T_(i-1) does: one product gives every axis (column 0) and point (1).
-        ap = T[..., :3, :] @ self._axis_point  # (P, n, 3, 2)
-        a, r = ap[..., 0], (T[:, -1, :3, :] @ self._tool_h)[:, None, :] - ap[..., 1]
-        J = np.empty((P, 3, n))  # columns a x (p_tool - p_i)
-        J[:, 0] = a[..., 1] * r[..., 2] - a[..., 2] * r[..., 1]
-        J[:, 1] = a[..., 2] * r[..., 0] - a[..., 0] * r[..., 2]
-        J[:, 2] = a[..., 0] * r[..., 1] - a[..., 1] * r[..., 0]
-        p_tool = r[:, 0] + ap[:, 0, :, 1]
-        if self._base_is_identity:
-            return p_tool, J
-        Rb, tb = self._base[:3, :3], self._base[:3, 3]
-        return p_tool @ Rb.T + tb, Rb @ J
-
-
 def desired_path(model: RobotModel, task: Task, config: TrackingConfig
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Times ``t (n+1,)`` s, desired positions and velocities ``(n+1, 3)`` (mm, mm/s) and the
@@ -538,15 +471,17 @@ def tracking_fitness(
 
 
 # ---- gain tuning ------------------------------------------------------------------------
-#: The gain tuners of paper 003 (Table 2 parameters: population 50, 50 iterations each).
-TUNERS = {"hgso": HGSO, "pso": PSO, "ga": GeneticAlgorithm, "aco": ACOR, "gwo": GWO}
+#: The gain tuners of paper 003 (Table 2 parameters: population 50, 50 iterations each),
+#: name -> optimiser dataclass: the ``tuner`` family of ``planning.registry`` (``aco`` is
+#: ACO_R, the continuous ant colony).
+TUNERS: dict[str, type] = algorithm_classes("tuner")
 
 
 def make_tuner(name: str, iterations: int | None = None):
-    """The tuner ``name`` with Table 2's parameters (``iterations`` overrides Nc)."""
-    if name not in TUNERS:
-        raise ValueError(f"tune: unknown tuner {name!r}; known: {', '.join(TUNERS)}")
-    return TUNERS[name]() if iterations is None else TUNERS[name](iterations=iterations)
+    """The tuner ``name`` with Table 2's parameters (``iterations`` overrides Nc):
+    ``registry.make("tuner", name, ...)``; ``FieldError`` naming ``tune`` for an unknown
+    name."""
+    return make("tuner", name, None if iterations is None else {"iterations": iterations})
 
 
 def tuner_budget(opt) -> int:

@@ -17,12 +17,11 @@ Node names follow the kinematic chain under one root per arm (``/robot/<id>`` fo
 
 Hydraulic cylinders. The model data give each cylinder's pin *distances* from the joint axis
 and the pin *angle* as a function of the joint (``kinematics.cylinders``), not where the pin
-rays point on the links. The drawing places them by one rule: the rod pin on the driven
-link's x axis (``r2`` out from the joint), the barrel pin on the carrying link at the angle the
-mechanism prescribes (``r1`` out, ``-sign * phi0`` from the carrying link's reference ray); the
-four-bar linkage is laid out from its own angles with the stick along the carrying link. So
-the triangle about the joint may be rotated against the real machine, but every drawn
-cylinder is exactly as long as ``CylinderSet.lengths`` says (the tests check this).
+rays point on the links. ``CylinderSet.pins`` places the pins (and a four-bar's points) in
+the plane of the joint they act about; the drawing puts that plane's x axis on the driven
+link's x axis projected onto the plane, turned back by the joint value. So the triangle
+about the joint may be rotated against the real machine, but every drawn cylinder is exactly
+as long as ``CylinderSet.lengths`` says (the tests check this).
 """
 
 from __future__ import annotations
@@ -35,13 +34,7 @@ from typing import Any
 import numpy as np
 import viser.transforms as vtf
 
-from kinematics.cylinders import (
-    CylinderError,
-    FourBarCylinder,
-    SwingCylinderPair,
-    TriangleCylinder,
-    cylinder_set,
-)
+from kinematics.cylinders import CylinderError, cylinder_set
 from kinematics.fk import fk_frames, joint_axes
 from kinematics.model import RobotModel
 
@@ -187,43 +180,6 @@ def _joint_plane(axis: np.ndarray, x_child: np.ndarray, theta: float
     return u_c, u_p, np.cross(a, u_p), a
 
 
-def _triangle_pins(c: TriangleCylinder, origin: np.ndarray, u_c: np.ndarray, u_p: np.ndarray,
-                   v_p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Barrel pin (``r1``, on the carrying link at ``-sign * phi0``) and rod pin (``r2``, on the
-    driven link's x axis): the angle between them is ``phi0 + sign * theta`` as in eq. 18."""
-    beta = -c.sign * c.phi0
-    barrel = origin + c.r1 * (math.cos(beta) * u_p + math.sin(beta) * v_p)
-    rod = origin + c.r2 * u_c
-    return barrel, rod
-
-
-def _four_bar_points(c: FourBarCylinder, theta: float, H: np.ndarray, u_p: np.ndarray,
-                     v_p: np.ndarray) -> dict[str, np.ndarray]:
-    """Points H, N, K, M, G of the linkage (eqs. 20-23) in the world ``(3,)`` each.
-
-    Laid out in the linkage's own plane frame (N at the origin, H on +x, K on the +y side) and
-    placed with N-H along the carrying link's reference ray; the side is mirrored by ``sign``
-    so that K turns with the driven link.
-    """
-    a, b, m, k = c.l_kh, c.l_hn, c.l_mn, c.l_km
-    khn = c.psi0 + c.sign * theta
-    K2 = np.array([b - a * math.cos(khn), a * math.sin(khn)])
-    kn = float(np.hypot(*K2))
-    knh = math.atan2(K2[1], K2[0])
-    u = (m * m + kn * kn - k * k) / (2.0 * m * kn)
-    knm = math.acos(min(1.0, max(-1.0, u)))
-    hnm = knh + knm
-    M2 = m * np.array([math.cos(hnm), math.sin(hnm)])
-    G2 = c.l_ng * np.array([math.cos(c.angle_gnh), -math.sin(c.angle_gnh)])
-    N = H - b * u_p
-    y = -c.sign * v_p
-
-    def world(p: np.ndarray) -> np.ndarray:
-        return N + p[0] * u_p + p[1] * y
-
-    return {"H": H, "N": N, "K": world(K2), "M": world(M2), "G": world(G2)}
-
-
 def cylinder_drawings(model: RobotModel, q: np.ndarray, frames: np.ndarray | None = None
                       ) -> tuple[CylinderDrawing, ...]:
     """Pin positions (mm, base frame) of every hydraulic cylinder of ``model`` at ``q (dof,)``;
@@ -240,27 +196,19 @@ def cylinder_drawings(model: RobotModel, q: np.ndarray, frames: np.ndarray | Non
     lengths = cs.lengths(q)
     inside = cs.within_stroke(lengths)
     out: list[CylinderDrawing] = []
-    for mech in cs.mechanisms:
-        j = mech.joint
-        theta = float(q[j])
-        u_c, u_p, v_p, _ = _joint_plane(axes[0, j], frames[j + 1][:3, 0], theta)
-        origin = points[0, j]
-        joint_name = model.joints[j].name
-        if isinstance(mech, FourBarCylinder):
-            P = _four_bar_points(mech, theta, origin, u_p, v_p)
-            pairs = [(mech, P["G"], P["M"],
-                      {"rocker": (P["N"], P["M"]), "coupler": (P["M"], P["K"]),
-                       "crank": (P["H"], P["K"])})]
-        elif isinstance(mech, SwingCylinderPair):
-            pairs = [(c, *_triangle_pins(c, origin, u_c, u_p, v_p), {}) for c in mech.sides]
-        else:
-            pairs = [(mech, *_triangle_pins(mech, origin, u_c, u_p, v_p), {})]
-        for c, barrel, rod, bars in pairs:
-            out.append(CylinderDrawing(
-                name=c.name, joint=joint_name, barrel_pin=barrel, rod_pin=rod,
-                length=float(lengths[c.name]), min_length=c.min_length,
-                max_length=c.max_length, within_stroke=bool(inside[c.name]), bars=bars,
-            ))
+    for c in cs.pins(q).values():  # pins in the plane of the joint each cylinder drives
+        j = c.joint
+        _, u_p, v_p, _ = _joint_plane(axes[0, j], frames[j + 1][:3, 0], float(q[j]))
+        origin, plane = points[0, j], np.stack([u_p, v_p])  # plane (x, y) -> world: p @ plane
+        P = {key: origin + p @ plane for key, p in c.linkage.items()}
+        bars = {"rocker": (P["N"], P["M"]), "coupler": (P["M"], P["K"]),
+                "crank": (P["H"], P["K"])} if P else {}
+        min_length, max_length = cs.limits(c.name)
+        out.append(CylinderDrawing(
+            name=c.name, joint=model.joints[j].name, barrel_pin=origin + c.barrel @ plane,
+            rod_pin=origin + c.rod @ plane, length=float(lengths[c.name]), min_length=min_length,
+            max_length=max_length, within_stroke=bool(inside[c.name]), bars=bars,
+        ))
     return tuple(out)
 
 

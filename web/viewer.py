@@ -244,11 +244,6 @@ class Viewer:
             self._remember()
             return self.current
 
-    def show_robot(self, model: RobotModel | str, q=None) -> dict:
-        """Show a robot (model or id) at ``q (dof,)``; returns ``{"robot", "q"}``."""
-        key = model if isinstance(model, str) else model.id
-        return self.select(key, q)
-
     def _show_active(self) -> None:
         """Sliders, cylinder table and gizmo for the active arm (under the lock)."""
         arm = self._arms[self._active]

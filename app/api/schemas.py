@@ -4,13 +4,14 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 
 from kinematics.workspace import DEFAULT_SAMPLES, MAX_SAMPLES
 
 from ..fields import (
     JointVector,
     Point3,
+    StrictModel,
     bounded_list,
     joint_input,
     pose_input,
@@ -30,7 +31,7 @@ __all__ = [
     "JacobianRequest",
     "JacobianResponse",
     "IKRequest",
-    "IKResult",
+    "IKResultOut",
     "IKResponse",
     "WorkspaceRequest",
     "WorkspaceResponse",
@@ -54,10 +55,8 @@ MAX_DRILL_HOLES = 2_000
 MAX_SEED = 2**32 - 1
 
 
-class Body(BaseModel):
+class Body(StrictModel):
     """Request bodies: unknown fields and NaN/inf are rejected (422)."""
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class StoreHealth(BaseModel):
@@ -144,7 +143,7 @@ class IKRequest(Body):
     )
 
 
-class IKResult(BaseModel):
+class IKResultOut(BaseModel):
     success: bool
     status: Literal["ok", "unreachable", "out_of_limits", "not_converged"]
     q: list[float] | None
@@ -158,7 +157,7 @@ class IKResult(BaseModel):
 
 
 class IKResponse(BaseModel):
-    results: list[IKResult]
+    results: list[IKResultOut]
 
 
 class WorkspaceRequest(Body):

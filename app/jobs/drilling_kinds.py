@@ -15,13 +15,10 @@ accepts is exactly what the run plans.
 
 from __future__ import annotations
 
-import math
 from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import (
-    BaseModel,
-    ConfigDict,
     Field,
     PrivateAttr,
     ValidationError,
@@ -32,7 +29,11 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from kinematics.numbers import finite_or_none
+from planning.registry import algorithm_names
+
 from ..fields import Point3 as Vec3
+from ..fields import StrictModel
 from .kinds import MAX_SEED, XYZ, JobKind, Params, Progress, Result, register
 from .planner_params import (
     MOVE_PLANNER_KNOBS,
@@ -48,7 +49,10 @@ __all__ = ["SequenceParams", "SequenceResult", "MultiarmParams", "MultiarmResult
 #: Most holes one job takes (sequence) / one face (multiarm).
 MAX_HOLES = 2000
 MAX_FACE_HOLES = 600
-Algorithm = Literal["iga", "aco", "aga", "auto"]
+#: The hole sequencers and the move planners: the ``sequencer`` and ``move_planner``
+#: families of ``planning.registry``.
+Algorithm = Literal[algorithm_names("sequencer")]  # type: ignore[valid-type]
+Planner = Literal[algorithm_names("move_planner")]  # type: ignore[valid-type]
 
 #: JSON schemas of the free-form algorithm parameters: one bounded model per algorithm.
 SequencerKnobs = Annotated[dict[str, Any] | None, WithJsonSchema(knobs_schema(
@@ -56,10 +60,6 @@ SequencerKnobs = Annotated[dict[str, Any] | None, WithJsonSchema(knobs_schema(
     "planning.sequencing"))]
 PlannerKnobs = Annotated[dict[str, Any] | None, WithJsonSchema(knobs_schema(
     MOVE_PLANNER_KNOBS, "Move planner parameters, by planner; see planning.drilling"))]
-
-
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 def _sequencer_params(v, algorithm, prefix: str = "params"):
@@ -134,7 +134,7 @@ register(JobKind("sequence", SequenceParams, SequenceResult, run_sequence,
 
 
 # ---- multiarm --------------------------------------------------------------------------------
-class FaceIn(_Strict):
+class FaceIn(StrictModel):
     """A generated face (``planning.drilling.patterns.FacePattern``), mm."""
 
     shape: Literal["horseshoe", "circular"] = "horseshoe"
@@ -158,7 +158,7 @@ class MultiarmParams(Params):
     holes: dict[str, list[Vec3]] | None = Field(
         None, description="Holes per arm {\"left\": [[x, y, z], ...], ...} mm (rig frame)")
     face: FaceIn | None = Field(None, description="Or a generated face, allocated to the arms")
-    planner: Literal["iapf", "rrt"] = "iapf"
+    planner: Planner = "iapf"
     planner_params: PlannerKnobs = None
     sequencer: Algorithm = "auto"
     sequencer_params: SequencerKnobs = None
@@ -262,10 +262,6 @@ def _window_min(values: np.ndarray, t: np.ndarray, out_t: np.ndarray) -> np.ndar
     return np.minimum.reduceat(values, np.minimum(idx, len(values) - 1))
 
 
-def _finite(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
-
-
 class MultiarmArm(Result):
     """One arm's part of a face plan; ``q`` sampled at the plan's ``t``."""
 
@@ -287,7 +283,7 @@ class MultiarmResult(Result):
     s for collisions between the arms' envelopes."""
 
     rig: str
-    planner: Literal["iapf", "rrt"]
+    planner: Planner
     success: bool
     messages: list[str] = Field(description="Failures (any makes the plan unsuccessful)")
     notes: list[str]
@@ -356,7 +352,7 @@ def run_multiarm(params: MultiarmParams, progress: Progress) -> MultiarmResult:
         t=out_t.tolist(),
         arms=arms,
         min_distance=min_distance,
-        min_distance_overall={p: _finite(d.min()) for p, d in plan.min_distance.items()},
+        min_distance_overall={p: finite_or_none(d.min()) for p, d in plan.min_distance.items()},
         collisions=plan.total_collisions,
         collisions_by_pair=plan.collisions,
         travel_m={a: ap.tool_path_m for a, ap in plan.arms.items()},

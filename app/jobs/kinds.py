@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Generic, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, JsonValue, PrivateAttr, ValidationError
 
+from ..fields import StrictModel
 from .caps import MAX_PARAMS_BYTES
 
 if TYPE_CHECKING:
@@ -84,13 +85,11 @@ class JobResultError(ValueError):
     """A job returned something its kind's ``Result`` does not describe."""
 
 
-class Params(BaseModel):
+class Params(StrictModel):
     """Job parameters: unknown fields and NaN/inf are rejected (422 naming the field).
 
     A worker attaches the robot model the service resolved at submission; ``robot_model()``
     returns it."""
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     _robot_model: RobotModel | None = PrivateAttr(None)
 
@@ -112,10 +111,8 @@ class Params(BaseModel):
                              "it is not a built-in robot") from None
 
 
-class Result(BaseModel):
+class Result(StrictModel):
     """A job's result: every field typed, nothing else, every number finite."""
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 def _is_none(value: Any) -> bool:

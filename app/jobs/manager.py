@@ -180,20 +180,20 @@ class JobManager:
 
     def learned_ik(self, robot_id: str):
         """The learned IK of the latest succeeded ``ik_train`` job for ``robot_id`` (cached),
-        with that job's id; None if there is none."""
-        import json
-
+        with that job's id; None if there is none. One indexed query per call; the result of
+        a job is read (and parsed as ``IKTrainResult``) only when it is newer than the cache."""
         from kinematics.learned_ik import LearnedIK
 
-        latest = None
-        for job in self.store.list_jobs("succeeded", kind="ik_train"):
-            if job.params.get("robot") == robot_id:
-                latest = job
+        from .model_kinds import IKTrainResult
+
+        latest = self.store.latest_job_for_robot("ik_train", robot_id)
         if latest is None:
             return None
         cached = self._learned.get(robot_id)
         if cached is None or cached[0] != latest.id:
-            result = json.loads(self.store.job_result(latest.id) or "{}")
-            cached = (latest.id, LearnedIK.from_dict(result["learned"]))
+            text = self.store.job_result(latest.id)
+            assert text is not None  # a succeeded job has its result
+            result = IKTrainResult.model_validate_json(text)
+            cached = (latest.id, LearnedIK.from_dict(result.learned.model_dump()))
             self._learned[robot_id] = cached
         return cached

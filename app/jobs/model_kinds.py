@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import math
 from typing import Annotated, Literal
 
 from pydantic import ConfigDict, Field, model_validator
 
 from kinematics.model import MAX_DOF
+from kinematics.numbers import finite_or_none
 
 from ..fields import Coordinate, JointValue, Point3
 from .kinds import (
@@ -143,20 +143,17 @@ def run_calibrate(params: CalibrateParams, progress: Progress) -> CalibrateResul
                     regularization=params.regularization, seed=params.seed)
     progress(1.0, "done")
 
-    def finite(x: float) -> float | None:
-        return float(x) if math.isfinite(x) else None
-
     return CalibrateResult(
         robot=model.id,
         values=res.values,
         initial=res.initial,
-        std_errors={k: finite(v) for k, v in res.std_errors.items()},
+        std_errors={k: finite_or_none(v) for k, v in res.std_errors.items()},
         unidentified=list(res.unidentified),
         warnings=list(res.warnings),
-        rms_position=finite(res.rms_position),
-        rms_rotation=finite(res.rms_rotation),
+        rms_position=finite_or_none(res.rms_position),
+        rms_rotation=finite_or_none(res.rms_rotation),
         position_residuals=res.position_residuals.tolist(),
-        rotation_residuals=[[finite(v) for v in row] for row in res.rotation_residuals],
+        rotation_residuals=[[finite_or_none(v) for v in row] for row in res.rotation_residuals],
         success=bool(res.success),
         message=res.message,
         model=RobotModelData.model_validate(res.model.to_dict()),

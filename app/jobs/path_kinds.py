@@ -23,8 +23,6 @@ from __future__ import annotations
 from typing import Annotated, Any, Literal
 
 from pydantic import (
-    BaseModel,
-    ConfigDict,
     Field,
     PrivateAttr,
     ValidationInfo,
@@ -33,7 +31,9 @@ from pydantic import (
     model_validator,
 )
 
-from ..fields import MAX_COORDINATE_MM
+from planning.registry import algorithm_names
+
+from ..fields import MAX_COORDINATE_MM, StrictModel
 from ..fields import Point3 as Vec3
 from .kinds import (
     MAX_SEED,
@@ -51,7 +51,8 @@ from .planner_params import PATH_KNOBS, check_batch_memory, knobs_schema, path_k
 __all__ = ["PathParams", "PathResult", "PathCompareParams", "PathCompareResult", "run_path",
            "run_path_compare"]
 
-Algorithm = Literal["wolfpack_improved", "wolfpack", "ga", "aca", "afsa", "rrt_star", "auto"]
+#: The path planners: the ``path`` family of ``planning.registry``.
+Algorithm = Literal[algorithm_names("path")]  # type: ignore[valid-type]
 #: Most obstacles in one scene.
 MAX_OBSTACLES = 1000
 #: Largest obstacle radius or box edge, and safety margin (mm).
@@ -67,11 +68,7 @@ PLANNER_PARAMS_SCHEMA = knobs_schema(
     "planning.paths")
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-
-
-class ObstacleIn(_Strict):
+class ObstacleIn(StrictModel):
     """A sphere ``{center, radius}`` (``type`` optional), a box ``{type: "box", lower, upper}``
     or ``{type: "box", center, size}``, or a capsule ``{type: "capsule", a, b, radius}``."""
 
@@ -106,7 +103,7 @@ class ObstacleIn(_Strict):
         return {k: v for k, v in self.model_dump().items() if v is not None}
 
 
-class SceneIn(_Strict):
+class SceneIn(StrictModel):
     bounds: list[Vec3] = Field(min_length=2, max_length=2,
                                description="[[xmin, ymin, zmin], [xmax, ymax, zmax]] mm")
     obstacles: list[ObstacleIn] = Field(default_factory=list, max_length=MAX_OBSTACLES)
@@ -132,7 +129,7 @@ class SceneIn(_Strict):
         return self._scene
 
 
-class ArmOptions(_Strict):
+class ArmOptions(StrictModel):
     """Options of a path planned for a robot's tool (see ``planning.arm_paths``)."""
 
     link_radius: (Annotated[float, Field(ge=0, le=MAX_LINK_RADIUS_MM)]

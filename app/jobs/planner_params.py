@@ -1,27 +1,32 @@
-"""Bounded parameters of the planners a job may tune: the path optimisers (``path``,
+"""Bounded parameters of the planners a job may tune: the path planners (``path``,
 ``path_compare``), the hole sequencers (``sequence``, ``multiarm``) and the multi-arm move
 planners (``multiarm``).
 
-Each algorithm gets a pydantic model with a cap on every knob (``ge``/``le`` in its JSON
-schema, so ``GET /jobs/kinds`` shows them) and the algorithm's own defaults, read from its
-parameter dataclass. The caps keep one knob from running a job for days or filling the
-memory (``iterations: 1e12`` is a 422 naming ``params.iterations``); the product of several
-knobs is bounded by the job time limit, and, for the path planners, by ``check_batch_memory``
-(the obstacle checks of one batch of candidate paths must fit in ``MAX_BATCH_BYTES``).
+Each algorithm of ``planning.registry`` gets a pydantic model generated from its parameter
+dataclass: every knob typed as its field, capped by the bounds of its field metadata
+(``ge``/``gt``/``le``/``lt`` in its JSON schema, so ``GET /jobs/kinds`` shows them), with
+the algorithm's own defaults and the description of its field; the model is described by the
+algorithm's summary. Registering an algorithm is all it takes for the API to accept it. The
+caps keep one knob from running a job for days or filling the memory (``iterations: 1e12``
+is a 422 naming ``params.iterations``); the product of several knobs is bounded by the job
+time limit, and, for the path planners, by ``check_batch_memory`` (the obstacle checks of
+one batch of candidate paths must fit in ``MAX_BATCH_BYTES``).
 
-After the caps, the algorithm's dataclass is still built, so its own checks across knobs
-(``elite < population``, an even population, ...) apply too.
+After the caps, the algorithm's dataclass is still built (``planning.registry.make``), so
+its own checks across knobs (``elite < population``, an even population, ...) apply too.
 """
 
 from __future__ import annotations
 
-import importlib
 import math
-from dataclasses import fields
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
+from pydantic import ConfigDict, Field, ValidationError, create_model
 from pydantic_core import InitErrorDetails, PydanticCustomError
+
+from planning.registry import FAMILIES, Knob, algorithm_names, knobs, lookup, make
+
+from ..fields import StrictModel
 
 __all__ = [
     "Knobs",
@@ -29,6 +34,8 @@ __all__ = [
     "SEQUENCER_KNOBS",
     "MOVE_PLANNER_KNOBS",
     "MAX_BATCH_BYTES",
+    "knobs_model",
+    "knobs_models",
     "knobs_schema",
     "validate_knobs",
     "path_knobs",
@@ -38,224 +45,45 @@ __all__ = [
 ]
 
 
-def Int(lo: int, hi: int, doc: str | None = None) -> Any:
-    return Annotated[int, Field(ge=lo, le=hi, description=doc)]
-
-
-def Real(lo: float, hi: float, doc: str | None = None, *, above: bool = False,
-         below: bool = False) -> Any:
-    """A float in [lo, hi]; ``above``/``below`` make that end open."""
-    low = {"gt": lo} if above else {"ge": lo}
-    high = {"lt": hi} if below else {"le": hi}
-    return Annotated[float, Field(**low, **high, description=doc)]
-
-
-Fraction = Real(0.0, 1.0)
-Probability = Real(0.0, 1.0, "probability")
-
-
-class Knobs(BaseModel):
+class Knobs(StrictModel):
     """Parameters of one algorithm: unknown names and NaN/inf are rejected."""
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+# ---- models, from the registry ------------------------------------------------------------
+def _annotation(knob: Knob) -> Any:
+    """The pydantic type of ``knob``: one of its choices, or its type within its caps; or
+    None too when it is optional."""
+    if knob.choices is not None:
+        tp: Any = Literal[knob.choices]
+    elif knob.bounds:
+        tp = Annotated[knob.type, Field(**knob.bounds)]
+    else:
+        tp = knob.type
+    return tp | None if knob.optional else tp
 
 
-# ---- the caps ------------------------------------------------------------------------------
-#: Knobs ``plan_path`` takes for every metaheuristic besides its optimiser's own.
-_PATH_COMMON = {
-    "waypoints": (Int(1, 50, "intermediate waypoints of the encoding"), None),
-    "penalty": (Real(0.0, 1e9, "mm of length per mm of penetration", above=True), 1000.0),
-    "max_evaluations": (Int(1, 100_000_000, "evaluation budget") | None, None),
-    "shortcut": (bool, True),
-    "random_shortcuts": (Int(0, 10_000), 100),
-}
-_SHORTCUTS = {k: _PATH_COMMON[k] for k in ("shortcut", "random_shortcuts")}
-
-_WOLFPACK = {
-    "n_wolves": Int(3, 1000),
-    "scout_fraction": Real(0.0, 1.0, above=True, below=True),
-    "step_factor": Real(1e-3, 1e6),
-    "max_walks": Int(1, 100),
-    "distance_factor": Real(1e-3, 1e6),
-    "update_ratio": Real(1e-3, 1e3),
-    "directions": Int(1, 100),
-    "iterations": Int(1, 10_000),
-    "max_summon_steps": Int(0, 1000),
-}
-_OPTIMISER_CAPS: dict[str, dict[str, Any]] = {
-    "wolfpack": _WOLFPACK,
-    "wolfpack_improved": _WOLFPACK | {"levy_lambda": Real(1.0, 3.0, above=True),
-                                      "levy_weight": Real(0.0, 10.0)},
-    "ga": {
-        "population": Int(2, 2000),
-        "crossover": Probability,
-        "selection": Real(0.0, 1.0, "fraction of parents", above=True),
-        "mutation": Probability,
-        "iterations": Int(1, 20_000),
-        "mutation_scale": Real(0.0, 10.0, "fraction of the range", above=True),
-        "elite": Int(0, 1999),
-    },
-    "afsa": {
-        "n_fish": Int(2, 300),
-        "visual": Real(0.0, 10.0, "fraction of the mean range", above=True),
-        "step": Real(0.0, 10.0, "fraction of the mean range", above=True),
-        "crowding": Real(1e-3, 1e6),
-        "try_number": Int(1, 300),
-        "iterations": Int(1, 10_000),
-    },
-    "aca": {
-        "n_ants": Int(1, 5000),
-        "alpha": Real(0.0, 100.0),
-        "beta": Real(0.0, 100.0),
-        "evaporation": Real(0.0, 1.0, above=True),
-        "q": Real(0.0, 1e9),
-        "iterations": Int(1, 10_000),
-        "n_slices": Int(1, 100),
-        "grid": Int(2, 101),
-        "window": Int(1, 20),
-    },
-}
-#: Knobs of the two planners that are not metaheuristics (defaults: ``auto_planner``'s).
-_OWN_PLANNERS = {
-    "auto": {
-        "samples": (Int(4, 2000, "surface samples per obstacle"), 150),
-        "rel_offset": (Real(0.0, 1.0, "offset of the samples / obstacle size", above=True),
-                       0.02),
-        "rounds": (Int(0, 20, "tightening rounds"), 1),
-    } | _SHORTCUTS,
-    "rrt_star": {
-        "samples": (Int(1, 20_000), 3000),
-        "step": (Real(0.0, 1e8, "mm; default a tenth of the scene's diagonal", above=True)
-                 | None, None),
-        "goal_bias": (Probability, 0.05),
-        "gamma": (Real(0.0, 1e9, "mm; default twice the scene's diagonal", above=True)
-                  | None, None),
-        "time_limit": (Real(0.0, 3600.0, "s", above=True) | None, None),
-    } | _SHORTCUTS,
-}
-
-_SEQUENCER_CAPS: dict[str, dict[str, Any]] = {
-    "iga": {
-        "population": Int(2, 500, "even"),
-        "crossover": Probability,
-        "mutation": Probability,
-        "iterations": Int(1, 5000),
-        "p_swap": Probability,
-        "p_reverse": Probability,
-        "p_insert": Probability,
-        "cooling": Real(0.0, 1.0, above=True),
-        "tournament": Int(1, 500),
-        "destroy_fraction": Fraction,
-        "removal": Literal["random", "related", "mixed"],
-        "initial_temperature": Real(0.0, 1e7, "mm", above=True) | None,
-    },
-    "aco": {
-        "ants": Int(1, 500),
-        "alpha": Real(0.0, 20.0),
-        "beta": Real(0.0, 20.0),
-        "rho": Real(0.0, 1.0, above=True),
-        "q": Real(0.0, 1e9, above=True),
-        "iterations": Int(1, 5000),
-    },
-    "aga": {
-        "population": Int(2, 1000, "even"),
-        "crossover": Probability,
-        "mutation": Probability,
-        "iterations": Int(1, 20_000),
-        "crossover_min": Probability,
-        "mutation_min": Probability,
-    },
-    "auto": {
-        "exact_max": Int(0, 16, "most holes solved exactly"),
-        "kicks": Int(0, 100_000),
-        "stall": Int(0, 100_000),
-        "kick_segment": Int(0, 1000),
-        "threshold": Real(0.0, 1.0, "fraction longer than the best accepted"),
-        "restarts": Int(1, 200),
-    },
-}
-
-_MOVE_PLANNER_CAPS: dict[str, dict[str, Any]] = {
-    "iapf": {
-        "attraction_gain": Real(0.0, 1e3, above=True),
-        "goal_threshold": Real(0.0, 2.0, "normalised joint distance", above=True),
-        "repulsion_gain": Real(0.0, 1e3),
-        "influence": Real(0.0, 1e5, "mm", above=True),
-        "step": Real(1e-5, 1.0, "normalised"),
-        "far_step": Real(1e-5, 1.0, "normalised"),
-        "safety": Real(0.0, 2000.0, "mm"),
-        "max_steps": Int(1, 100_000),
-        "stall_window": Int(1, 10_000),
-        "escape_steps": Int(0, 10_000),
-        "max_escapes": Int(0, 1000),
-        "gradient_step": Real(1e-9, 0.1, "normalised"),
-    },
-    "rrt": {
-        "step": Real(1e-4, 1.0, "normalised"),
-        "edge_resolution": Real(1e-4, 1.0, "normalised"),
-        "max_iterations": Int(1, 100_000),
-        "safety": Real(0.0, 2000.0, "mm"),
-        "shortcut": Int(0, 10_000),
-    },
-}
-
-
-# ---- models --------------------------------------------------------------------------------
-def _model(title: str, spec: dict[str, tuple[Any, Any]]) -> type[Knobs]:
+def knobs_model(family: str, name: str) -> type[Knobs]:
+    """The model of algorithm ``name`` of ``family`` (``planning.registry.knobs``), titled
+    ``"<name> <params field>"`` (``"ga params"``, ``"rrt planner_params"``). TypeError naming
+    the field when a number of its dataclass has no caps."""
+    entry = lookup(family, name)
+    title = f"{name} {FAMILIES[family].params_field}"
+    spec: dict[str, Any] = {
+        k.name: (_annotation(k), Field(k.default, description=k.description))
+        for k in knobs(family, name)}
     base = type("Knobs", (Knobs,), {"model_config": ConfigDict(title=title)})
-    return create_model(title.replace(" ", "_"), __base__=base, **spec)  # type: ignore
+    return create_model(title.replace(" ", "_"), __base__=base,  # type: ignore
+                        __doc__=entry.summary or None, **spec)
 
 
-def _from_dataclass(title: str, cls: type, defaults: object, caps: dict[str, Any],
-                    extra: dict[str, tuple[Any, Any]] | None = None) -> type[Knobs]:
-    """The model of dataclass ``cls``: every field capped by ``caps`` (a field without a cap
-    is an error here, so a new knob cannot slip through uncapped), defaults from
-    ``defaults`` (an instance: a preset may differ from the class defaults)."""
-    names = [f.name for f in fields(cls)]
-    missing = set(names) - set(caps)
-    if missing:
-        raise TypeError(f"{cls.__name__}: no cap for {', '.join(sorted(missing))}")
-    spec = {n: (caps[n], getattr(defaults, n)) for n in names}
-    return _model(title, spec | (extra or {}))
+def knobs_models(family: str) -> dict[str, type[Knobs]]:
+    """Name -> model of every algorithm of ``family``."""
+    return {name: knobs_model(family, name) for name in algorithm_names(family)}
 
 
-def _path_models() -> dict[str, type[Knobs]]:
-    from planning.paths import _OPTIMISERS, DEFAULT_WAYPOINTS
-
-    out: dict[str, type[Knobs]] = {}
-    for name, (module, cls_name, preset) in _OPTIMISERS.items():
-        cls = getattr(importlib.import_module(module), cls_name)
-        base = getattr(cls, preset)() if preset else cls()
-        common = dict(_PATH_COMMON)
-        common["waypoints"] = (common["waypoints"][0], DEFAULT_WAYPOINTS.get(name, 5))
-        out[name] = _from_dataclass(f"{name} params", cls, base, _OPTIMISER_CAPS[name],
-                                    common)
-    for name, spec in _OWN_PLANNERS.items():
-        out[name] = _model(f"{name} params", spec)
-    return out
-
-
-def _dataclass_models(registry: dict[str, type], caps: dict[str, dict[str, Any]],
-                      what: str) -> dict[str, type[Knobs]]:
-    return {name: _from_dataclass(f"{name} {what}", cls, cls(), caps[name])
-            for name, cls in registry.items()}
-
-
-def _sequencer_models() -> dict[str, type[Knobs]]:
-    from planning.sequencing import SEQUENCERS
-
-    return _dataclass_models(SEQUENCERS, _SEQUENCER_CAPS, "params")
-
-
-def _move_planner_models() -> dict[str, type[Knobs]]:
-    from planning.drilling.multiarm import PLANNERS
-
-    return _dataclass_models(PLANNERS, _MOVE_PLANNER_CAPS, "planner_params")
-
-
-PATH_KNOBS = _path_models()
-SEQUENCER_KNOBS = _sequencer_models()
-MOVE_PLANNER_KNOBS = _move_planner_models()
+PATH_KNOBS = knobs_models("path")
+SEQUENCER_KNOBS = knobs_models("sequencer")
+MOVE_PLANNER_KNOBS = knobs_models("move_planner")
 
 
 def knobs_schema(models: dict[str, type[Knobs]], description: str) -> dict[str, Any]:
@@ -304,10 +132,8 @@ def path_knobs(algorithm: str, value: dict | None, prefix: str = "params", loc: 
                ) -> dict[str, Any] | None:
     """A path planner's params, capped, then built (the optimiser's own cross checks)."""
     value = validate_knobs(PATH_KNOBS, algorithm, value, prefix, loc)
-    if value is not None and algorithm not in _OWN_PLANNERS:
-        from planning.paths import make_optimiser
-
-        make_optimiser(algorithm, {k: v for k, v in value.items() if k not in _PATH_COMMON})
+    if value is not None:
+        make("path", algorithm, value)
     return value
 
 
@@ -316,9 +142,7 @@ def sequencer_knobs(algorithm: str, value: dict | None, prefix: str = "params"
     """A hole sequencer's params, capped, then built."""
     value = validate_knobs(SEQUENCER_KNOBS, algorithm, value, prefix)
     if value is not None:
-        from planning.sequencing import make_sequencer
-
-        make_sequencer(algorithm, value)
+        make("sequencer", algorithm, value)
     return value
 
 
@@ -327,9 +151,7 @@ def move_planner_knobs(planner: str, value: dict | None, prefix: str = "planner_
     """A multi-arm move planner's params, capped, then built."""
     value = validate_knobs(MOVE_PLANNER_KNOBS, planner, value, prefix)
     if value is not None:
-        from planning.drilling.multiarm import make_planner
-
-        make_planner(planner, value)
+        make("move_planner", planner, value)
     return value
 
 

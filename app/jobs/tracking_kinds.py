@@ -26,6 +26,8 @@ from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import Field, model_validator
 
+from planning.registry import algorithm_names
+
 from ..fields import Coordinate, JointValue
 from .kinds import MAX_SEED, XYZ, JobKind, Params, Progress, Result, absent_when_none, register
 
@@ -45,6 +47,8 @@ MAX_STEPS = 20_000
 MAX_TUNING_WORK = 6_000_000
 #: Tuner iterations when ``iterations`` is not given (paper 003, Table 2).
 DEFAULT_TUNER_ITERATIONS = 50
+#: The gain tuners: the ``tuner`` family of ``planning.registry`` (``aco`` is ACO_R).
+Tuner = Literal[algorithm_names("tuner")]  # type: ignore[valid-type]
 
 #: A direction (scaled to unit length); bounded like every coordinate so its norm is finite.
 Vector3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3)]
@@ -125,7 +129,7 @@ class TrackingParams(Params):
     robot: str = Field("hyper_redundant_9dof", max_length=200, description="Robot id")
     task: LineTaskParams | EllipseTaskParams = Field(discriminator="kind")
     controller: ControllerParams = ControllerParams()
-    tune: Literal["hgso", "pso", "ga", "aco", "gwo"] | None = None
+    tune: Tuner | None = None
     bounds: BoundsParams = BoundsParams()
     iterations: int | None = Field(None, ge=1, le=200, description="Tuner iterations "
                                    "(default: Table 2's 50)")
@@ -190,7 +194,7 @@ class TrackingResult(Result):
     robot: str
     task: Task
     controller: Literal["default", "pi"]
-    tune: Literal["hgso", "pso", "ga", "aco", "gwo"] | None
+    tune: Tuner | None
     mean_error: float = Field(description="mm, over the path")
     max_error: float = Field(description="mm")
     std_error: float = Field(description="mm")

@@ -1,4 +1,5 @@
-"""Inverse kinematics: closed forms where a model has one, numeric for every model.
+"""Inverse kinematics: closed forms where a model has one, numeric for every model, and
+position-only IK (``position``) for the tool point alone.
 
 ``solve_ik`` is the entry point; it validates the target poses once and dispatches.
 """
@@ -16,6 +17,7 @@ from ..model import RobotModel
 from ..transforms import project_to_rigid, rigidity_error
 from . import pile_driver, spherical_wrist
 from .numeric import NumericOptions, solve_batch
+from .position import position_ik, reach
 from .result import IKResult, IKStatus
 
 __all__ = [
@@ -26,6 +28,8 @@ __all__ = [
     "RIGIDITY_TOL",
     "analytic_solver",
     "available_methods",
+    "position_ik",
+    "reach",
     "solve_ik",
 ]
 

@@ -20,7 +20,7 @@ from .allocation import home_configuration as home_configuration
 from .envelopes import ArmEnvelope as ArmEnvelope
 from .envelopes import drill_arm_envelope as drill_arm_envelope
 from .iapf import IAPF as IAPF
-from .iapf import PathResult as PathResult
+from .iapf import MovePath as MovePath
 from .multiarm import FacePlan as FacePlan
 from .multiarm import MotionLimits as MotionLimits
 from .multiarm import park_configuration as park_configuration
@@ -44,8 +44,8 @@ __all__ = [
     "HolePattern",
     "IAPF",
     "MotionLimits",
+    "MovePath",
     "Obstacles",
-    "PathResult",
     "RRTConnect",
     "allocate_holes",
     "assign_holes",

@@ -41,16 +41,17 @@ from kinematics.errors import FieldError
 from ..status import PlanStatus
 from .space import ArmSpace, Obstacles
 
-__all__ = ["IAPF", "PathResult"]
+__all__ = ["IAPF", "MovePath"]
 
 
 @dataclass(frozen=True)
-class PathResult:
-    """A joint-space path: ``q (K, 3)`` planned joints (rad, rad, mm) from start to goal,
-    ``status`` (``ok``; ``collision``: the start or goal configuration collides;
-    ``invalid_input``: it leaves the joint limits (RRT-Connect checks); ``no_path``: stuck in
-    a local minimum; ``budget_spent``: out of steps or iterations), a message, the smallest
-    clearance along the path points (mm) and the number of planner iterations."""
+class MovePath:
+    """The joint-space path of one arm move, as ``IAPF`` and ``RRTConnect`` plan it:
+    ``q (K, 3)`` planned joints (rad, rad, mm) from start to goal, ``status`` (``ok``;
+    ``collision``: the start or goal configuration collides; ``invalid_input``: it leaves
+    the joint limits (RRT-Connect checks); ``no_path``: stuck in a local minimum;
+    ``budget_spent``: out of steps or iterations), a message, the smallest clearance along
+    the path points (mm) and the number of planner iterations."""
 
     q: np.ndarray
     status: PlanStatus
@@ -70,18 +71,22 @@ class IAPF:
     """IAPF parameters. Distances in the potentials are in metres; ``influence`` and
     ``safety`` are given in mm. None of these is printed in the paper (ours)."""
 
-    attraction_gain: float = 1.0
-    goal_threshold: float = 0.3
-    repulsion_gain: float = 0.01
-    influence: float = 800.0
-    step: float = 0.005
-    far_step: float = 0.02
-    safety: float = 100.0
-    max_steps: int = 4000
-    stall_window: int = 40
-    escape_steps: int = 20
-    max_escapes: int = 10
-    gradient_step: float = 1e-4
+    attraction_gain: float = field(default=1.0, metadata={"gt": 0.0, "le": 1e3})
+    goal_threshold: float = field(default=0.3, metadata={
+        "gt": 0.0, "le": 2.0, "description": "normalised joint distance"})
+    repulsion_gain: float = field(default=0.01, metadata={"ge": 0.0, "le": 1e3})
+    influence: float = field(default=800.0, metadata={"gt": 0.0, "le": 1e5, "description": "mm"})
+    step: float = field(default=0.005, metadata={
+        "ge": 1e-5, "le": 1.0, "description": "normalised"})
+    far_step: float = field(default=0.02, metadata={
+        "ge": 1e-5, "le": 1.0, "description": "normalised"})
+    safety: float = field(default=100.0, metadata={"ge": 0.0, "le": 2000.0, "description": "mm"})
+    max_steps: int = field(default=4000, metadata={"ge": 1, "le": 100_000})
+    stall_window: int = field(default=40, metadata={"ge": 1, "le": 10_000})
+    escape_steps: int = field(default=20, metadata={"ge": 0, "le": 10_000})
+    max_escapes: int = field(default=10, metadata={"ge": 0, "le": 1000})
+    gradient_step: float = field(default=1e-4, metadata={
+        "ge": 1e-9, "le": 0.1, "description": "normalised"})
 
     def __post_init__(self) -> None:
         for name in ("attraction_gain", "goal_threshold", "influence", "step", "far_step",
@@ -125,7 +130,7 @@ class IAPF:
         return F + F_rep1.sum(axis=1) + F_rep2.sum(axis=1)
 
     def plan(self, space: ArmSpace, obstacles: Obstacles, q_start, q_goal,
-             rng: np.random.Generator) -> PathResult:
+             rng: np.random.Generator) -> MovePath:
         """Path of the planned joints from ``q_start (3,)`` to ``q_goal (3,)``."""
         u = space.to_u(np.asarray(q_start, dtype=float)[None])[0]
         ug = space.to_u(np.asarray(q_goal, dtype=float)[None])[0]
@@ -152,7 +157,7 @@ class IAPF:
             if rho <= (self.far_step if far else self.step):
                 path.append(ug.copy())
                 min_c = min(min_c, float(c_goal.min()))
-                return PathResult(space.from_u(np.array(path)), PlanStatus.OK, "reached the goal",
+                return MovePath(space.from_u(np.array(path)), PlanStatus.OK, "reached the goal",
                                   min_c, k + 1, "iapf", {"escapes": escapes})
             F = self.forces(space, obstacles, u, ug, c_links)
             norm = float(np.linalg.norm(F))
@@ -232,6 +237,6 @@ class IAPF:
         return u, c_links
 
     @staticmethod
-    def _fail(space, path, min_c, iterations, message, status: PlanStatus) -> PathResult:
-        return PathResult(space.from_u(np.array(path)), status, message, float(min_c),
+    def _fail(space, path, min_c, iterations, message, status: PlanStatus) -> MovePath:
+        return MovePath(space.from_u(np.array(path)), status, message, float(min_c),
                           iterations, "iapf")

@@ -33,7 +33,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -45,6 +45,7 @@ from kinematics.fk import fk
 from kinematics.rigs import Rig
 
 from ..bspline import quintic_bspline
+from ..registry import algorithm_classes, make
 from ..sequencing import SequenceResult, sequence_holes
 from ..status import PlanStatus
 from ..time_scaling import fit_to_limits
@@ -57,8 +58,7 @@ from .envelopes import (
     drill_arm_envelope,
     min_distance,
 )
-from .iapf import IAPF, PathResult
-from .rrt import RRTConnect
+from .iapf import MovePath
 from .space import ArmSpace, Obstacles
 
 __all__ = [
@@ -68,6 +68,7 @@ __all__ = [
     "ArmTimeline",
     "ArmPlan",
     "FacePlan",
+    "FaceOptions",
     "make_planner",
     "park_configuration",
     "plan_move",
@@ -76,7 +77,9 @@ __all__ = [
     "pair_distances",
 ]
 
-PLANNERS: dict[str, type] = {"iapf": IAPF, "rrt": RRTConnect}
+#: Move planner name -> parameter dataclass: the ``move_planner`` family of
+#: ``planning.registry`` (``iapf.IAPF``, ``rrt.RRTConnect``).
+PLANNERS: dict[str, type] = algorithm_classes("move_planner")
 #: Step of the final collision check, s (the brief's 10 ms).
 CHECK_DT = 0.01
 #: Joints whose accelerations the paper bounds (swing, pitch and the two compensation
@@ -135,7 +138,7 @@ class Move:
     standoff: float
     t_retract: float
     t_advance: float
-    path: PathResult
+    path: MovePath
     status: PlanStatus
     message: str
     tool_path_m: float = 0.0
@@ -384,16 +387,32 @@ def park_configuration(rig: Rig, arm: str, face_x: float, d7: float = DRILL_D7) 
 
 
 # ---- the final check -------------------------------------------------------------------------
+#: Two arms, in the rig's order.
+Pair = tuple[str, str]
+
+
+def _pair_key(pair: Pair) -> str:
+    """How results name an arm pair: ``("left", "middle")`` -> ``"left-middle"``."""
+    return f"{pair[0]}-{pair[1]}"
+
+
 def pair_distances(rig: Rig, envelope: ArmEnvelope, q: Mapping[str, np.ndarray],
                    moving: Mapping[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
     """Signed distance (mm) between the envelopes of every pair of arms at every sample:
     ``q[arm] (S, 7)`` -> ``{"a-b": (S,)}``. With ``moving[arm] (S,) bool``, samples at which
     neither arm of a pair moves (and did not at the sample before) repeat the last value
     instead of being recomputed."""
+    return {_pair_key(p): d for p, d in _pair_distances(rig, envelope, q, moving).items()}
+
+
+def _pair_distances(rig: Rig, envelope: ArmEnvelope, q: Mapping[str, np.ndarray],
+                    moving: Mapping[str, np.ndarray] | None = None
+                    ) -> dict[Pair, np.ndarray]:
+    """``pair_distances`` keyed by the pairs themselves: ``{(a, b): (S,)}``."""
     names = list(q)
     S = len(next(iter(q.values())))
     caps = {a: None for a in names}
-    out: dict[str, np.ndarray] = {}
+    out: dict[Pair, np.ndarray] = {}
     for a, b in itertools.combinations(names, 2):
         if moving is None:
             need = np.ones(S, dtype=bool)
@@ -413,7 +432,7 @@ def pair_distances(rig: Rig, envelope: ArmEnvelope, q: Mapping[str, np.ndarray],
         # forward-fill the skipped samples
         pos = np.where(need, np.arange(S), 0)
         np.maximum.accumulate(pos, out=pos)
-        out[f"{a}-{b}"] = full[pos]
+        out[(a, b)] = full[pos]
     return out
 
 
@@ -435,37 +454,148 @@ def _capsules_dedup(model, q, envelope, moving) -> np.ndarray:
 # ---- the face planner ------------------------------------------------------------------------
 def make_planner(name: str, params: Mapping[str, Any] | None = None):
     """The move planner ``name`` (``"iapf"`` or ``"rrt"``) with ``params`` overriding its
-    defaults; ``FieldError`` naming ``planner`` or ``planner_params.<name>``."""
-    if name not in PLANNERS:
-        raise FieldError("planner", f"planner: must be one of {', '.join(PLANNERS)}, "
-                         f"got {name!r}")
-    cls = PLANNERS[name]
-    known = set(cls.__dataclass_fields__)
-    for key in params or {}:
-        if key not in known:
-            raise FieldError(("planner_params", key), f"planner_params.{key}: not a parameter "
-                             f"of {name} (known: {', '.join(sorted(known))})")
-    return cls(**dict(params or {}))
+    defaults: ``registry.make("move_planner", name, params)``; ``FieldError`` naming
+    ``planner`` or ``planner_params.<name>``."""
+    return make("move_planner", name, params)
 
 
-def _arm_moves(space, obstacles, configs, planner, fallback, rng, limits, standoff,
-               t0, drill_time_s, on_move=None
-               ) -> tuple[ArmTimeline, list[tuple[PlanStatus, str]]]:
-    """Moves through ``configs (K, 7)`` (first = where the arm is), starting at ``t0``; with
-    the status and message of each failed move."""
-    moves, starts, msgs = [], [], []
-    t = t0
-    for k in range(1, len(configs)):
-        mv = plan_move(space, obstacles, configs[k - 1], configs[k], planner, rng,
-                       limits=limits, standoff=standoff, fallback=fallback)
-        if not mv.success:
-            msgs.append((mv.status, f"move {k}: {mv.message}"))
-        moves.append(mv)
-        starts.append(t)
-        t += mv.duration + drill_time_s
-        if on_move is not None:
-            on_move()
-    return ArmTimeline(configs[0], tuple(moves), np.array(starts)), msgs
+@dataclass(frozen=True)
+class FaceOptions:
+    """How ``plan_face`` plans a face once its holes are allocated (its keyword arguments
+    of the same names), checked when made: ``FieldError`` naming the field at fault."""
+
+    planner: str = "iapf"
+    planner_params: Mapping[str, Any] | None = None
+    sequencer: str = "auto"
+    sequencer_params: Mapping[str, Any] | None = None
+    seed: int = 0
+    radii: Mapping[str, float] | None = None
+    standoff: float = 300.0
+    drill_time_s: float = 0.0
+    limits: MotionLimits = field(default_factory=MotionLimits)
+    middle_park: str = "last_hole"
+    fallback: bool = True
+    check_dt: float = CHECK_DT
+
+    def __post_init__(self) -> None:
+        if self.middle_park not in ("last_hole", "home"):
+            raise FieldError("middle_park", "middle_park: must be 'last_hole' or 'home', got "
+                             f"{self.middle_park!r}")
+        if not 0 <= self.standoff <= 2000:
+            raise FieldError("standoff", "standoff: must be in [0, 2000] mm")
+        if not self.drill_time_s >= 0:
+            raise FieldError("drill_time_s", "drill_time_s: must be >= 0")
+        if not 1e-4 <= self.check_dt <= 0.1:
+            raise FieldError("check_dt", "check_dt: must be in [0.0001, 0.1] s")
+
+    def move_planners(self) -> tuple[Any, Any | None]:
+        """The move planner and, with ``fallback``, the other one with the same safety
+        margin, tried on a move the first cannot plan."""
+        main = make_planner(self.planner, self.planner_params)
+        other = "rrt" if self.planner == "iapf" else "iapf"
+        return main, PLANNERS[other](safety=main.safety) if self.fallback else None
+
+
+@dataclass(eq=False)
+class _ArmState:
+    """One arm while its face is planned: where it waits (``park (7,)``, its tool then at
+    ``start (3,)`` mm), its holes in drilling order (``order``, from ``sequence``), the
+    configurations it visits (``configs (K, 7)``: the park pose, then one per hole) and its
+    timeline so far."""
+
+    name: str
+    space: ArmSpace
+    park: np.ndarray
+    start: np.ndarray
+    order: np.ndarray
+    sequence: SequenceResult | None
+    configs: np.ndarray
+    timeline: ArmTimeline
+
+
+@dataclass(frozen=True)
+class _Failure:
+    """Why the plan fails, and who is at fault: an arm, or a pair of arms."""
+
+    who: str | Pair
+    status: PlanStatus
+    message: str
+
+
+@dataclass(frozen=True)
+class _Check:
+    """The final check: samples ``t (S,)`` s, configurations ``q[arm] (S, 7)`` and the signed
+    envelope distance per arm pair ``distance[(a, b)] (S,)`` mm."""
+
+    t: np.ndarray
+    q: dict[str, np.ndarray]
+    distance: dict[Pair, np.ndarray]
+
+
+@dataclass(eq=False)
+class _MoveProgress:
+    """Progress over the moves to plan: 0.05 when sequenced, 0.9 when all are planned."""
+
+    report: Callable[[float, str], None]
+    total: int
+    done: int = 0
+
+    def tick(self) -> None:
+        self.done += 1
+        self.report(0.05 + 0.85 * min(1.0, self.done / self.total), "planning moves")
+
+
+@dataclass(eq=False)
+class _FaceRun:
+    """What the steps of ``plan_face`` share: the rig, the options and the move planners,
+    every arm's state (``arms``, in the rig's order), the arms with holes (``working``), the
+    middle arm (None for fewer than three arms), and the failures and notes so far."""
+
+    rig: Rig
+    options: FaceOptions
+    allocation: Allocation
+    envelope: ArmEnvelope
+    face_x: float
+    main: Any
+    backup: Any | None
+    rng: np.random.Generator
+    arms: dict[str, _ArmState]
+    working: list[str]
+    middle: str | None
+    failures: list[_Failure] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def sides(self) -> list[str]:
+        """The arms with holes other than the middle arm."""
+        return [a for a in self.working if a != self.middle]
+
+    def at_rest(self, arms: Iterable[str]) -> Obstacles:
+        """``arms`` as obstacles, each where its timeline (so far) leaves it."""
+        return Obstacles.of_arms({a: (self.rig.arms[a], self.arms[a].timeline.q_final)
+                                  for a in arms}, self.envelope)
+
+    def plan_arm(self, arm: str, obstacles: Obstacles, configs: np.ndarray, t0: float,
+                 on_move: Callable[[], None] | None = None) -> None:
+        """Plan ``arm``'s moves through ``configs (K, 7)`` (the first where it is) among
+        ``obstacles``, starting at ``t0`` s: its new timeline, and its failed moves in place
+        of any earlier ones."""
+        o = self.options
+        state = self.arms[arm]
+        moves, starts, failed = [], [], []
+        t = t0
+        for k in range(1, len(configs)):
+            mv = plan_move(state.space, obstacles, configs[k - 1], configs[k], self.main,
+                           self.rng, limits=o.limits, standoff=o.standoff, fallback=self.backup)
+            if not mv.success:
+                failed.append(_Failure(arm, mv.status, f"{arm} move {k}: {mv.message}"))
+            moves.append(mv)
+            starts.append(t)
+            t += mv.duration + o.drill_time_s
+            if on_move is not None:
+                on_move()
+        state.timeline = ArmTimeline(configs[0], tuple(moves), np.array(starts))
+        self.failures = [f for f in self.failures if f.who != arm] + failed
 
 
 def plan_face(
@@ -499,23 +629,39 @@ def plan_face(
     ``drill_time_s`` the dwell on each hole; ``middle_park``: ``"last_hole"`` (the paper) or
     ``"home"``; ``fallback``: try the other planner on a move the first cannot plan
     (reported per arm in ``planner_counts``). Seeded and reproducible.
+
+    The steps: allocate and sequence each arm's holes (``_start_face``), plan the middle
+    arm's moves (``_plan_middle_arm``) and then the side arms' (``_plan_side_arms``), check
+    every pair of arms every ``check_dt`` s (``_check``), make side arms that meet wait for
+    one another (``_separate_side_arms``), and report (``_face_plan``).
     """
     t_start = time.perf_counter()
     report = progress or (lambda f, m: None)
-    if middle_park not in ("last_hole", "home"):
-        raise FieldError("middle_park", "middle_park: must be 'last_hole' or 'home', got "
-                         f"{middle_park!r}")
-    if not 0 <= standoff <= 2000:
-        raise FieldError("standoff", "standoff: must be in [0, 2000] mm")
-    if not drill_time_s >= 0:
-        raise FieldError("drill_time_s", "drill_time_s: must be >= 0")
-    if not 1e-4 <= check_dt <= 0.1:
-        raise FieldError("check_dt", "check_dt: must be in [0.0001, 0.1] s")
-    limits = limits or MotionLimits()
-    main = make_planner(planner, planner_params)
-    other_name = "rrt" if planner == "iapf" else "iapf"
-    backup = PLANNERS[other_name](safety=main.safety) if fallback else None
-    envelope = drill_arm_envelope(radii)
+    options = FaceOptions(
+        planner=planner, planner_params=planner_params, sequencer=sequencer,
+        sequencer_params=sequencer_params, seed=seed, radii=radii, standoff=standoff,
+        drill_time_s=drill_time_s, limits=limits or MotionLimits(), middle_park=middle_park,
+        fallback=fallback, check_dt=check_dt)
+    run = _start_face(rig, holes, options, allocation, balance, counts)
+    report(0.05, "sequenced")
+    moves = _MoveProgress(report, sum(len(run.allocation.indices[a]) for a in run.working) + 1)
+    park_used, t_phase2 = _plan_middle_arm(run, moves.tick)
+    _plan_side_arms(run, t_phase2, moves.tick)
+    report(0.9, "checking")
+    check = _separate_side_arms(run, _check(run))
+    _record_check_failures(run, check)
+    plan = _face_plan(run, check, park_used, t_phase2, t_start)
+    report(1.0, "done")
+    return plan
+
+
+def _start_face(rig: Rig, holes, options: FaceOptions, allocation: Allocation | None,
+                balance: str, counts: Mapping[str, int] | None) -> _FaceRun:
+    """The move planners and envelopes, the allocation (``allocate_holes`` unless given, on
+    one face plane), where each arm waits, and each arm's holes in drilling order from
+    there (sequencer seeded with ``seed`` plus the arm's index in the rig)."""
+    main, backup = options.move_planners()
+    envelope = drill_arm_envelope(options.radii)
     if allocation is None:
         allocation = allocate_holes(rig, holes, balance=balance, counts=counts)
     P = allocation.holes
@@ -523,142 +669,165 @@ def plan_face(
     if np.ptp(P[:, 0]) > 1.0:
         raise FieldError("holes", "holes: all holes must lie on one face plane (same x within "
                          "1 mm)")
-    arms = tuple(rig.arms)  # every arm is there, with holes or parked
-    working = [a for a in arms if a in allocation.arms and len(allocation.indices[a])]
-    rng = np.random.default_rng(seed)
-    spaces = {a: ArmSpace(rig.arms[a], envelope, face_x) for a in arms}
-    park = {a: park_configuration(rig, a, face_x) for a in arms}
-    mounts = np.array([rig.arms[a].base[1, 3] for a in arms])
-    middle = arms[int(np.argmin(np.abs(mounts - mounts.mean())))] if len(arms) > 2 else None
-    n_moves = sum(len(allocation.indices[a]) for a in working) + 1
-    done = [0]
-
-    def tick() -> None:
-        done[0] += 1
-        report(0.05 + 0.85 * min(1.0, done[0] / n_moves), "planning moves")
-
-    # sequencing, each arm from where it waits
-    plans: dict[str, dict[str, Any]] = {}
-    for k, a in enumerate(arms):
+    names = tuple(rig.arms)  # every arm is there, with holes or parked
+    working = [a for a in names if a in allocation.arms and len(allocation.indices[a])]
+    spaces = {a: ArmSpace(rig.arms[a], envelope, face_x) for a in names}
+    parks = {a: park_configuration(rig, a, face_x) for a in names}
+    arms = {}
+    for k, a in enumerate(names):
         idx = allocation.indices[a] if a in working else np.zeros(0, dtype=int)
-        start = fk(rig.arms[a], park[a])[:3, 3]
-        res = None
-        order = idx
-        if len(idx) >= 2:
-            res = sequence_holes(P[idx], start, sequencer, seed + k, sequencer_params)
-            order = idx[res.order]
-        q_holes = allocation.q[a][np.searchsorted(idx, order)] if len(idx) else \
-            np.zeros((0, 7))
-        plans[a] = {"order": order, "sequence": res,
-                    "configs": np.vstack([park[a][None], q_holes])}
-    report(0.05, "sequenced")
+        arms[a] = _sequenced_arm(a, spaces[a], parks[a], fk(rig.arms[a], parks[a])[:3, 3],
+                                 idx, allocation, options, options.seed + k)
+    return _FaceRun(rig, options, allocation, envelope, face_x, main, backup,
+                    np.random.default_rng(options.seed), arms, working, _middle_arm(rig))
 
-    # failures, by the arm (or pair of arms) at fault: any makes the plan unsuccessful
-    failures: list[tuple[str, PlanStatus, str]] = []
-    notes: list[str] = []
-    timelines = {a: ArmTimeline(park[a], (), np.zeros(0)) for a in arms}
-    park_used = "none"
-    # phase 1: the middle arm, the others parked
-    t_phase2 = 0.0
-    if middle in working:
-        obs = Obstacles.of_arms({a: (rig.arms[a], park[a]) for a in arms if a != middle},
-                                envelope)
-        configs = plans[middle]["configs"]
-        park_used = middle_park
-        if middle_park == "last_hole" and not _park_ok(rig, envelope, middle, configs[-1],
-                                                       plans, working, main.safety):
-            park_used = "home"
-            notes.append(f"{middle} returns home: parked on its last hole it would block "
+
+def _middle_arm(rig: Rig) -> str | None:
+    """The arm mounted nearest the middle of the rig (None for fewer than three arms)."""
+    names = tuple(rig.arms)
+    if len(names) <= 2:
+        return None
+    mounts = np.array([rig.arms[a].base[1, 3] for a in names])
+    return names[int(np.argmin(np.abs(mounts - mounts.mean())))]
+
+
+def _sequenced_arm(name: str, space: ArmSpace, park: np.ndarray, start: np.ndarray,
+                   idx: np.ndarray, allocation: Allocation, options: FaceOptions,
+                   seed: int) -> _ArmState:
+    """An arm parked at ``park``, its tool at ``start``, with the holes ``idx`` (indices into
+    the face) put in drilling order from there."""
+    sequence = None
+    order = idx
+    if len(idx) >= 2:
+        sequence = sequence_holes(allocation.holes[idx], start, options.sequencer, seed,
+                                  options.sequencer_params)
+        order = idx[sequence.order]
+    q_holes = allocation.q[name][np.searchsorted(idx, order)] if len(idx) else \
+        np.zeros((0, 7))
+    return _ArmState(name, space, park, start, order, sequence,
+                     np.vstack([park[None], q_holes]), ArmTimeline(park, (), np.zeros(0)))
+
+
+def _plan_middle_arm(run: _FaceRun, tick: Callable[[], None]) -> tuple[str, float]:
+    """Phase 1: the middle arm drills its holes while the others wait parked, then stays on
+    its last hole (the paper) or returns home (``middle_park="home"``, or when on its last
+    hole it would block a side arm's hole). Returns where it stays (``"none"`` if it has no
+    holes) and when phase 2 starts (s)."""
+    middle = run.middle
+    if middle not in run.working:
+        return "none", 0.0
+    obstacles = run.at_rest(a for a in run.arms if a != middle)
+    configs = run.arms[middle].configs
+    park_used = run.options.middle_park
+    if park_used == "last_hole" and not _park_ok(run, configs[-1]):
+        park_used = "home"
+        run.notes.append(f"{middle} returns home: parked on its last hole it would block "
                          "a side arm's hole")
-        if park_used != "last_hole":
-            configs = np.vstack([configs, park[middle][None]])
-        tl, msgs = _arm_moves(spaces[middle], obs, configs, main, backup, rng, limits,
-                              standoff, 0.0, drill_time_s, tick)
-        failures += [(middle, st, f"{middle} {m}") for st, m in msgs]
-        timelines[middle] = tl
-        t_phase2 = tl.end
-    # phase 2: the other arms at once, the middle arm (and idle arms) parked
-    side = [a for a in working if a != middle]
-    for a in side:
-        parked = {x: (rig.arms[x], timelines[x].q_final) for x in arms
-                  if x not in side}
-        obs = Obstacles.of_arms(parked, envelope)
-        tl, msgs = _arm_moves(spaces[a], obs, plans[a]["configs"], main, backup, rng, limits,
-                              standoff, t_phase2, drill_time_s, tick)
-        failures += [(a, st, f"{a} {m}") for st, m in msgs]
-        timelines[a] = tl
-    report(0.9, "checking")
-    t, q, dist = _check(rig, envelope, timelines, check_dt)
-    # side arms that meet: the later one waits for the earlier, planned around it
-    for pair in list(dist):
-        a, b = pair.split("-")
-        if (dist[pair] < 0).any() and a in side and b in side:
-            parked = {x: (rig.arms[x], timelines[x].q_final) for x in arms if x != b}
-            obs = Obstacles.of_arms(parked, envelope)
-            tl, msgs = _arm_moves(spaces[b], obs, plans[b]["configs"], main, backup, rng,
-                                  limits, standoff, timelines[a].end, drill_time_s)
-            failures = [f for f in failures if f[0] != b]
-            failures += [(b, st, f"{b} {m}") for st, m in msgs]
-            notes.append(f"{b} waits for {a}: running at once they would meet")
-            timelines[b] = tl
-            t, q, dist = _check(rig, envelope, timelines, check_dt)
-    collisions = {p: int((d < 0).sum()) for p, d in dist.items()}
-    for p, n in collisions.items():
-        if n:
-            failures.append((p, PlanStatus.COLLISION, f"{p}: envelopes overlap at {n} samples "
-                             f"(closest {dist[p].min():.0f} mm)"))
-    for a in arms:
-        bad = ~rig.arms[a].within_limits(q[a], tol=1e-6)
-        if bad.any():
-            k = int(np.argmax(bad))
-            names = rig.arms[a].limit_violations(q[a][k], tol=1e-6)
-            failures.append((a, PlanStatus.OUT_OF_LIMITS,
-                             f"{a}: {', '.join(names)} outside limits at t = {t[k]:.2f} s"))
-    acc = _accelerations(q, t)
-    arm_plans = {}
-    for a in arms:
-        tl = timelines[a]
-        counts_used: dict[str, int] = {}
-        for mv in tl.moves:
-            counts_used[mv.path.planner] = counts_used.get(mv.path.planner, 0) + 1
-        res = plans[a]["sequence"]
-        straight = res.length if res is not None else (
-            float(np.linalg.norm(P[plans[a]["order"][0]] - fk(rig.arms[a], park[a])[:3, 3]))
-            if len(plans[a]["order"]) else 0.0)
-        arm_plans[a] = ArmPlan(a, plans[a]["order"], res, tl, straight / 1000.0,
-                               float(sum(mv.tool_path_m for mv in tl.moves)), counts_used)
-    report(1.0, "done")
-    status = failures[0][1] if failures else PlanStatus.OK
-    return FacePlan(allocation, arm_plans, t, q, dist, collisions, status,
-                    [m for _, _, m in failures],
-                    planner, park_used, time.perf_counter() - t_start, acc,
-                    {"face_x": face_x, "middle": middle, "phase2_start_s": t_phase2,
-                     "notes": notes})
+    if park_used != "last_hole":
+        configs = np.vstack([configs, run.arms[middle].park[None]])
+    run.plan_arm(middle, obstacles, configs, 0.0, tick)
+    return park_used, run.arms[middle].timeline.end
 
 
-def _park_ok(rig, envelope, middle, q_last, plans, working, safety) -> bool:
+def _park_ok(run: _FaceRun, q_last: np.ndarray) -> bool:
     """Whether the middle arm parked at ``q_last`` leaves every side arm's holes clear."""
-    obs = Obstacles.of_arms({middle: (rig.arms[middle], q_last)}, envelope)
-    for a in working:
-        if a == middle:
-            continue
-        C = capsules(rig.arms[a], plans[a]["configs"], envelope)
-        d = capsule_distances(C, envelope.radii, obs.segments, obs.radii)
-        if d.min() < safety:
+    middle, env = run.middle, run.envelope
+    obs = Obstacles.of_arms({middle: (run.rig.arms[middle], q_last)}, env)
+    for a in run.sides:
+        C = capsules(run.rig.arms[a], run.arms[a].configs, env)
+        d = capsule_distances(C, env.radii, obs.segments, obs.radii)
+        if d.min() < run.main.safety:
             return False
     return True
 
 
-def _check(rig, envelope, timelines, check_dt):
-    end = max(tl.end for tl in timelines.values())
-    n = int(math.floor(end / check_dt + 1e-9)) + 1
-    t = np.arange(n) * check_dt
+def _plan_side_arms(run: _FaceRun, t0: float, tick: Callable[[], None]) -> None:
+    """Phase 2, from ``t0`` s: the other arms with holes all at once, each planned around
+    the arms without holes and the middle arm, parked."""
+    sides = run.sides
+    for a in sides:
+        obstacles = run.at_rest(x for x in run.arms if x not in sides)
+        run.plan_arm(a, obstacles, run.arms[a].configs, t0, tick)
+
+
+def _check(run: _FaceRun) -> _Check:
+    """Every arm sampled every ``check_dt`` s over the whole plan (and at its end), and the
+    envelope distance of every pair of arms at every sample."""
+    end = max(st.timeline.end for st in run.arms.values())
+    n = int(math.floor(end / run.options.check_dt + 1e-9)) + 1
+    t = np.arange(n) * run.options.check_dt
     if t[-1] < end - 1e-9:
         t = np.append(t, end)
     q, moving = {}, {}
-    for a, tl in timelines.items():
-        q[a], moving[a] = tl.evaluate(t)
-    return t, q, pair_distances(rig, envelope, q, moving)
+    for a, st in run.arms.items():
+        q[a], moving[a] = st.timeline.evaluate(t)
+    return _Check(t, q, _pair_distances(run.rig, run.envelope, q, moving))
+
+
+def _separate_side_arms(run: _FaceRun, check: _Check) -> _Check:
+    """Side arms that meet when running at once: the later of the pair waits until the
+    earlier is done, planned around where it stops. Returns the check of the final plan."""
+    sides = run.sides
+    for a, b in list(check.distance):
+        if (check.distance[(a, b)] < 0).any() and a in sides and b in sides:
+            obstacles = run.at_rest(x for x in run.arms if x != b)
+            run.plan_arm(b, obstacles, run.arms[b].configs, run.arms[a].timeline.end)
+            run.notes.append(f"{b} waits for {a}: running at once they would meet")
+            check = _check(run)
+    return check
+
+
+def _record_check_failures(run: _FaceRun, check: _Check) -> None:
+    """Failures the final check finds: overlapping envelopes, joints beyond their limits."""
+    for p, d in check.distance.items():
+        n = int((d < 0).sum())
+        if n:
+            run.failures.append(_Failure(p, PlanStatus.COLLISION,
+                                         f"{_pair_key(p)}: envelopes overlap at {n} samples "
+                                         f"(closest {d.min():.0f} mm)"))
+    for a in run.arms:
+        model = run.rig.arms[a]
+        bad = ~model.within_limits(check.q[a], tol=1e-6)
+        if bad.any():
+            k = int(np.argmax(bad))
+            names = model.limit_violations(check.q[a][k], tol=1e-6)
+            run.failures.append(_Failure(a, PlanStatus.OUT_OF_LIMITS,
+                                         f"{a}: {', '.join(names)} outside limits at "
+                                         f"t = {check.t[k]:.2f} s"))
+
+
+def _arm_plan(state: _ArmState, holes: np.ndarray) -> ArmPlan:
+    """An arm's summary: moves per planner, the sequenced path length (the straight line to
+    a single hole) and the drill tip's path, m."""
+    tl = state.timeline
+    planner_counts: dict[str, int] = {}
+    for mv in tl.moves:
+        planner_counts[mv.path.planner] = planner_counts.get(mv.path.planner, 0) + 1
+    if state.sequence is not None:
+        length = state.sequence.length
+    elif len(state.order):
+        length = float(np.linalg.norm(holes[state.order[0]] - state.start))
+    else:
+        length = 0.0
+    return ArmPlan(state.name, state.order, state.sequence, tl, length / 1000.0,
+                   float(sum(mv.tool_path_m for mv in tl.moves)), planner_counts)
+
+
+def _face_plan(run: _FaceRun, check: _Check, park_used: str, t_phase2: float,
+               t_start: float) -> FacePlan:
+    """The plan as reported: arm pairs named ``"a-b"``, the status that of the first
+    failure, the run time since ``t_start`` (``time.perf_counter``)."""
+    distance = {_pair_key(p): d for p, d in check.distance.items()}
+    acc = _accelerations(check.q, check.t)
+    arm_plans = {a: _arm_plan(st, run.allocation.holes) for a, st in run.arms.items()}
+    return FacePlan(
+        run.allocation, arm_plans, check.t, check.q, distance,
+        {p: int((d < 0).sum()) for p, d in distance.items()},
+        run.failures[0].status if run.failures else PlanStatus.OK,
+        [f.message for f in run.failures], run.options.planner, park_used,
+        time.perf_counter() - t_start, acc,
+        {"face_x": run.face_x, "middle": run.middle, "phase2_start_s": t_phase2,
+         "notes": run.notes})
 
 
 def _accelerations(q: Mapping[str, np.ndarray], t: np.ndarray) -> dict[str, np.ndarray]:

@@ -12,14 +12,14 @@ so the comparison is with a plain RRT).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from kinematics.errors import FieldError
 
 from ..status import PlanStatus
-from .iapf import PathResult
+from .iapf import MovePath
 from .space import ArmSpace, Obstacles
 
 __all__ = ["RRTConnect"]
@@ -29,11 +29,12 @@ __all__ = ["RRTConnect"]
 class RRTConnect:
     """RRT-Connect parameters (normalised units; ``safety`` mm)."""
 
-    step: float = 0.05
-    edge_resolution: float = 0.005
-    max_iterations: int = 3000
-    safety: float = 100.0
-    shortcut: int = 0
+    step: float = field(default=0.05, metadata={"ge": 1e-4, "le": 1.0, "description": "normalised"})
+    edge_resolution: float = field(default=0.005, metadata={
+        "ge": 1e-4, "le": 1.0, "description": "normalised"})
+    max_iterations: int = field(default=3000, metadata={"ge": 1, "le": 100_000})
+    safety: float = field(default=100.0, metadata={"ge": 0.0, "le": 2000.0, "description": "mm"})
+    shortcut: int = field(default=0, metadata={"ge": 0, "le": 10_000})
 
     def __post_init__(self) -> None:
         for name in ("step", "edge_resolution"):
@@ -48,18 +49,18 @@ class RRTConnect:
                 raise FieldError(("planner_params", name), f"planner_params.{name}: must be >= 0")
 
     def plan(self, space: ArmSpace, obstacles: Obstacles, q_start, q_goal,
-             rng: np.random.Generator) -> PathResult:
+             rng: np.random.Generator) -> MovePath:
         """Path of the planned joints from ``q_start (3,)`` to ``q_goal (3,)``."""
         us = space.to_u(np.asarray(q_start, dtype=float)[None])[0]
         ug = space.to_u(np.asarray(q_goal, dtype=float)[None])[0]
         c = space.clearance(space.from_u(np.array([us, ug])), obstacles)
         for k, end in ((1, "goal"), (0, "start")):
             if c[k] == -np.inf:  # how ``ArmSpace.clearance`` marks leaving the joint limits
-                return PathResult(space.from_u(us[None]), PlanStatus.INVALID_INPUT,
+                return MovePath(space.from_u(us[None]), PlanStatus.INVALID_INPUT,
                                   f"{end} configuration leaves the joint limits", float(c[k]),
                                   0, "rrt")
             if c[k] < 0:
-                return PathResult(space.from_u(us[None]), PlanStatus.COLLISION,
+                return MovePath(space.from_u(us[None]), PlanStatus.COLLISION,
                                   f"{end} configuration collides", float(c[k]), 0, "rrt")
         margin = min(self.safety, float(c.min()))
         trees = [([us], [-1]), ([ug], [-1])]
@@ -77,10 +78,10 @@ class RRTConnect:
                 P = np.array(path)
                 P = self._shortcut(space, obstacles, P, margin, rng)
                 min_c = float(space.clearance(space.from_u(P), obstacles).min())
-                return PathResult(space.from_u(P), PlanStatus.OK, "connected", min_c, it + 1,
+                return MovePath(space.from_u(P), PlanStatus.OK, "connected", min_c, it + 1,
                                   "rrt",
                                   {"nodes": len(trees[0][0]) + len(trees[1][0])})
-        return PathResult(space.from_u(us[None]), PlanStatus.BUDGET_SPENT,
+        return MovePath(space.from_u(us[None]), PlanStatus.BUDGET_SPENT,
                           f"no connection in {self.max_iterations} iterations",
                           float(c.min()), self.max_iterations, "rrt")
 

@@ -21,11 +21,11 @@ a "slice" of ``grid`` levels and there is no heuristic.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .base import Evaluator, OptimResult, Problem, ProgressFn, run_with_budget
+from .base import Budget, OptimResult, Problem, ProgressFn, run_with_budget
 
 __all__ = ["AntColony"]
 
@@ -46,15 +46,15 @@ def _roulette(rng: np.random.Generator, logw: np.ndarray) -> np.ndarray:
 class AntColony:
     """Layered-grid ant colony; defaults = paper 000 plus our grid and window."""
 
-    n_ants: int = 100
-    alpha: float = 10.0
-    beta: float = 1.0
-    evaporation: float = 0.1
-    q: float = 1.0
-    iterations: int = 100
-    n_slices: int = 9
-    grid: int = 21
-    window: int = 3
+    n_ants: int = field(default=100, metadata={"ge": 1, "le": 5000})
+    alpha: float = field(default=10.0, metadata={"ge": 0.0, "le": 100.0})
+    beta: float = field(default=1.0, metadata={"ge": 0.0, "le": 100.0})
+    evaporation: float = field(default=0.1, metadata={"gt": 0.0, "le": 1.0})
+    q: float = field(default=1.0, metadata={"ge": 0.0, "le": 1e9})
+    iterations: int = field(default=100, metadata={"ge": 1, "le": 10_000})
+    n_slices: int = field(default=9, metadata={"ge": 1, "le": 100})
+    grid: int = field(default=21, metadata={"ge": 2, "le": 101})
+    window: int = field(default=3, metadata={"ge": 1, "le": 20})
 
     name = "aca"
 
@@ -80,7 +80,7 @@ class AntColony:
         return run_with_budget(problem, lambda ev: self._run_box(ev, rng),
                                max_evaluations=max_evaluations, progress=progress)
 
-    def _run_box(self, ev: Evaluator, rng: np.random.Generator) -> str:
+    def _run_box(self, ev: Budget, rng: np.random.Generator) -> str:
         pb = ev.problem
         D, G = pb.dim, self.grid
         levels = np.linspace(pb.lower, pb.upper, G).T  # (D, G)
@@ -171,7 +171,7 @@ class AntColony:
                            + d_goal[k + 1][nbr]) for k in range(L - 1)]
         best: dict = {"path": None}
 
-        def body(ev: Evaluator) -> str:
+        def body(ev: Budget) -> str:
             tau = np.ones((L, M))
             A = self.n_ants
             for _ in range(self.iterations):
@@ -197,8 +197,8 @@ class AntColony:
                     F = ev.evaluate(X)
                     for a, f in zip(idx, F):
                         tau[np.arange(L), pick[a]] += self.q / f
-                    if ev.best_x is not None:
-                        best["path"] = enc.decode(ev.best_x)[0]
+                    if ev.best is not None:
+                        best["path"] = enc.decode(ev.best)[0]
                 tau = np.maximum(tau, 1e-300)
                 ev.end_iteration()
             return f"{self.iterations} iterations"

@@ -28,11 +28,11 @@ instead of 1.2 on Ackley (medians of 30 seeds), so we use it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .base import Evaluator, Optimiser
+from .base import Budget, Optimiser
 
 __all__ = ["ACOR"]
 
@@ -41,13 +41,16 @@ __all__ = ["ACOR"]
 class ACOR(Optimiser):
     """ACO_R with paper 003 Table 2's ACO parameters mapped as in the module docstring."""
 
-    archive_size: int = 50  # k (Table 2's population)
-    n_ants: int = 50  # m, new solutions per iteration
-    alpha: float = 1.0  # pheromone factor
-    beta: float = 5.0  # heuristic factor
-    rho: float = 0.5  # evaporation rate -> xi
-    q0: float = 1.0  # locality of the pheromone alone
-    iterations: int = 50  # Nc
+    archive_size: int = field(default=50, metadata={
+        "ge": 2, "le": 2000})  # k (Table 2's population)
+    n_ants: int = field(default=50, metadata={
+        "ge": 1, "le": 5000})  # m, new solutions per iteration
+    alpha: float = field(default=1.0, metadata={"ge": 0.0, "le": 100.0})  # pheromone factor
+    beta: float = field(default=5.0, metadata={"ge": 0.0, "le": 100.0})  # heuristic factor
+    rho: float = field(default=0.5, metadata={"gt": 0.0, "le": 1.0})  # evaporation rate -> xi
+    q0: float = field(default=1.0, metadata={
+        "gt": 0.0, "le": 100.0})  # locality of the pheromone alone
+    iterations: int = field(default=50, metadata={"ge": 1, "le": 10_000})  # Nc
 
     name = "aco"
 
@@ -75,7 +78,7 @@ class ACOR(Optimiser):
         """ACO_R's deviation-distance ratio, ``= rho``."""
         return self.rho
 
-    def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
+    def _run(self, ev: Budget, rng: np.random.Generator) -> str:
         pb = ev.problem
         k, m = self.archive_size, self.n_ants
         S = pb.uniform(rng, k)

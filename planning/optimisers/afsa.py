@@ -21,11 +21,11 @@ is one waypoint; our path encoding has 3 coordinates per waypoint.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .base import Evaluator, Optimiser
+from .base import Budget, Optimiser
 
 __all__ = ["FishSwarm"]
 
@@ -34,12 +34,14 @@ __all__ = ["FishSwarm"]
 class FishSwarm(Optimiser):
     """Artificial fish swarm; defaults = paper 000."""
 
-    n_fish: int = 50
-    visual: float = 0.5  # fraction of the mean range (paper: 50 on a 100 mm scene)
-    step: float = 0.03  # fraction of the mean range (paper: 3)
-    crowding: float = 10.0
-    try_number: int = 50
-    iterations: int = 100
+    n_fish: int = field(default=50, metadata={"ge": 2, "le": 300})
+    visual: float = field(default=0.5, metadata={  # paper: 50 on a 100 mm scene
+        "gt": 0.0, "le": 10.0, "description": "fraction of the mean range"})
+    step: float = field(default=0.03, metadata={  # paper: 3
+        "gt": 0.0, "le": 10.0, "description": "fraction of the mean range"})
+    crowding: float = field(default=10.0, metadata={"ge": 1e-3, "le": 1e6})
+    try_number: int = field(default=50, metadata={"ge": 1, "le": 300})
+    iterations: int = field(default=100, metadata={"ge": 1, "le": 10_000})
 
     name = "afsa"
 
@@ -53,7 +55,7 @@ class FishSwarm(Optimiser):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive")
 
-    def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
+    def _run(self, ev: Budget, rng: np.random.Generator) -> str:
         pb = ev.problem
         N, D = self.n_fish, pb.dim
         scale = float(np.mean(np.asarray(pb.upper, float) - np.asarray(pb.lower, float)))

@@ -8,22 +8,22 @@ fraction of the budget used and may raise to stop the run (that is how jobs are 
 
 An optimiser module provides a frozen dataclass of its parameters (defaults = the paper's)
 with a ``minimize(problem, rng, *, max_evaluations=None, progress=None) -> OptimResult``
-method. ``run_with_budget`` wraps the objective so budget accounting and the history are
-kept in one place, not re-implemented per algorithm.
+method. ``run_with_budget`` runs it under a ``planning.budget.Budget``, so budget accounting
+and the history are kept in one place (shared with the hole sequencers), not re-implemented
+per algorithm.
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Problem", "OptimResult", "ProgressFn", "BudgetExhausted", "Evaluator",
-           "Optimiser", "run_with_budget"]
+from ..budget import Budget, BudgetExhausted, ProgressFn
 
-ProgressFn = Callable[[float], None]
+__all__ = ["Problem", "OptimResult", "ProgressFn", "BudgetExhausted", "Budget",
+           "Optimiser", "evaluation_budget", "run_with_budget"]
 
 
 @dataclass(frozen=True)
@@ -60,86 +60,41 @@ class OptimResult:
     extra: dict = field(default_factory=dict)
 
 
-class BudgetExhausted(Exception):
-    """Raised by ``Evaluator`` once the evaluation budget is spent."""
-
-
-class Evaluator:
-    """Counts evaluations of a problem, tracks the best point, and reports progress.
-
-    Algorithms call ``evaluate(X)``; once ``max_evaluations`` is reached the call evaluates
-    only what fits and then raises ``BudgetExhausted`` (caught by ``run_with_budget``).
-    ``end_iteration()`` appends the best-so-far to the history.
-    """
-
-    def __init__(self, problem: Problem, max_evaluations: int | None,
-                 progress: ProgressFn | None) -> None:
-        self.problem = problem
-        self.max_evaluations = max_evaluations
-        self.progress = progress
-        self.evaluations = 0
-        self.best_x: np.ndarray | None = None
-        self.best_f = np.inf
-        self.history: list[float] = []
-
-    def evaluate(self, X: np.ndarray) -> np.ndarray:
-        """Objective values ``(P,)`` of points ``X (P, D)`` (non-finite values become inf).
-
-        If the budget cannot cover all of ``X``, the part that fits is still evaluated (so
-        its best point counts) and ``BudgetExhausted`` is raised: callers never get a
-        shorter array than they asked for.
-        """
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-        room = len(X) if self.max_evaluations is None else \
-            self.max_evaluations - self.evaluations
-        if room <= 0:
-            raise BudgetExhausted()
-        part = X[:room]
-        F = np.asarray(self.problem.f(part), dtype=float).reshape(-1)
-        F = np.where(np.isfinite(F), F, np.inf)
-        self.evaluations += len(part)
-        k = int(np.argmin(F))
-        if F[k] < self.best_f:
-            self.best_f, self.best_x = float(F[k]), part[k].copy()
-        if self.progress is not None and self.max_evaluations:
-            self.progress(min(1.0, self.evaluations / self.max_evaluations))
-        if len(part) < len(X):
-            self.history.append(self.best_f)
-            raise BudgetExhausted()
-        return F
-
-    def end_iteration(self) -> None:
-        self.history.append(self.best_f)
+def evaluation_budget(problem: Problem, max_evaluations: int | None = None,
+                      progress: ProgressFn | None = None) -> Budget[Problem]:
+    """The budget of one optimiser run: points scored by ``problem.f``, progress as the
+    fraction of ``max_evaluations`` spent, and a batch the budget cuts short still closes
+    its iteration. Algorithms call ``evaluate(X)``, which scores only what fits once
+    ``max_evaluations`` is reached and then raises ``BudgetExhausted`` (caught by
+    ``run_with_budget``); ``end_iteration()`` appends the best-so-far to the history."""
+    return Budget(problem, problem.f, max_evaluations=max_evaluations, progress=progress,
+                  partial_batch_ends_iteration=True)
 
 
 def run_with_budget(
     problem: Problem,
-    body: Callable[[Evaluator], str | None],
+    body: Callable[[Budget[Problem]], str | None],
     *,
     max_evaluations: int | None = None,
     progress: ProgressFn | None = None,
 ) -> OptimResult:
-    """Run an algorithm's ``body(evaluator)`` until it returns or the budget is spent.
+    """Run an algorithm's ``body(budget)`` until it returns or the budget is spent.
 
     ``body`` returns an optional message. The result holds the best point ever evaluated.
     """
-    ev = Evaluator(problem, max_evaluations, progress)
-    t0 = time.perf_counter()
-    try:
-        message = body(ev) or "finished"
-    except BudgetExhausted:
-        message = "evaluation budget spent"
-    if ev.best_x is None:
+    ev = evaluation_budget(problem, max_evaluations, progress)
+    message = ev.run(lambda: body(ev))
+    if ev.best is None:
         raise ValueError("the optimiser evaluated nothing")
     return OptimResult(
-        x=ev.best_x, fun=ev.best_f, evaluations=ev.evaluations, iterations=len(ev.history),
-        history=np.array(ev.history), runtime_s=time.perf_counter() - t0, message=message,
+        x=ev.best, fun=ev.best_value, evaluations=ev.evaluations, iterations=len(ev.history),
+        history=np.array(ev.history), runtime_s=ev.elapsed_s, message=message,
     )
 
 
 class Optimiser:
-    """Base of the optimiser classes: ``minimize`` runs the subclass's ``_run(evaluator,
-    rng)`` under the budget (``_run`` returns an optional message)."""
+    """Base of the optimiser classes: ``minimize`` runs the subclass's ``_run(budget, rng)``
+    under the budget (``_run`` returns an optional message)."""
 
     def minimize(self, problem: Problem, rng: np.random.Generator, *,
                  max_evaluations: int | None = None,

@@ -18,11 +18,11 @@ iteration count for it; we use 100, as for its ant colony and fish swarm.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .base import Evaluator, Optimiser
+from .base import Budget, Optimiser
 
 __all__ = ["GeneticAlgorithm"]
 
@@ -31,13 +31,17 @@ __all__ = ["GeneticAlgorithm"]
 class GeneticAlgorithm(Optimiser):
     """Real-coded GA; every rate is a probability in [0, 1]."""
 
-    population: int = 50
-    crossover: float = 0.8
-    selection: float = 0.5
-    mutation: float = 0.5
-    iterations: int = 50
-    mutation_scale: float = 0.1
-    elite: int = 1
+    population: int = field(default=50, metadata={"ge": 2, "le": 2000})
+    crossover: float = field(default=0.8, metadata={
+        "ge": 0.0, "le": 1.0, "description": "probability"})
+    selection: float = field(default=0.5, metadata={
+        "gt": 0.0, "le": 1.0, "description": "fraction of parents"})
+    mutation: float = field(default=0.5, metadata={
+        "ge": 0.0, "le": 1.0, "description": "probability"})
+    iterations: int = field(default=50, metadata={"ge": 1, "le": 20_000})
+    mutation_scale: float = field(default=0.1, metadata={
+        "gt": 0.0, "le": 10.0, "description": "fraction of the range"})
+    elite: int = field(default=1, metadata={"ge": 0, "le": 1999})
 
     name = "ga"
 
@@ -61,7 +65,7 @@ class GeneticAlgorithm(Optimiser):
         """Paper 000's path-planning GA (section 4.3)."""
         return cls(population=5, crossover=0.8, selection=0.5, mutation=0.2, iterations=100)
 
-    def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
+    def _run(self, ev: Budget, rng: np.random.Generator) -> str:
         pb = ev.problem
         P, D = self.population, pb.dim
         span = np.asarray(pb.upper, float) - np.asarray(pb.lower, float)

@@ -26,11 +26,11 @@ about four times as long as with one batch.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .base import Evaluator, Optimiser
+from .base import Budget, Optimiser
 
 __all__ = ["GWO"]
 
@@ -39,11 +39,12 @@ __all__ = ["GWO"]
 class GWO(Optimiser):
     """Grey wolf optimiser; defaults = paper 003 Table 2."""
 
-    n_wolves: int = 50  # N
-    a_start: float = 2.0
-    a_end: float = 0.0
-    iterations: int = 50  # Nc
-    leader_refresh: int = 5  # wolves moved between leader updates
+    n_wolves: int = field(default=50, metadata={"ge": 3, "le": 1000})  # N
+    a_start: float = field(default=2.0, metadata={"ge": 0.0, "le": 10.0})
+    a_end: float = field(default=0.0, metadata={"ge": 0.0, "le": 10.0})
+    iterations: int = field(default=50, metadata={"ge": 1, "le": 10_000})  # Nc
+    leader_refresh: int = field(default=5, metadata={
+        "ge": 1, "le": 1000})  # wolves moved between leader updates
 
     name = "gwo"
 
@@ -71,7 +72,7 @@ class GWO(Optimiser):
             keep.append(keep[-1])
         return pool_X[keep].copy(), pool_F[keep].copy()
 
-    def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
+    def _run(self, ev: Budget, rng: np.random.Generator) -> str:
         pb = ev.problem
         N, D = self.n_wolves, pb.dim
         T = self.iterations if ev.max_evaluations is None else \

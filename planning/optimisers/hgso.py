@@ -31,11 +31,11 @@ fitness (errors, norms), as in both papers.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .base import Evaluator, Optimiser
+from .base import Budget, Optimiser
 
 __all__ = ["HGSO"]
 
@@ -44,19 +44,21 @@ __all__ = ["HGSO"]
 class HGSO(Optimiser):
     """Henry gas solubility optimisation; defaults = paper 003 Table 2 and section 3.1."""
 
-    n_gases: int = 50  # N
-    n_clusters: int = 5  # M
-    alpha: float = 1.0  # influence of the other gases
-    beta: float = 1.0  # interaction-ability constant
-    iterations: int = 50  # Nc
-    l1: float = 5e-2
-    l2: float = 100.0
-    l3: float = 1e-2
-    c1: float = 0.1  # worst-gas fraction, low
-    c2: float = 0.2  # worst-gas fraction, high
-    K: float = 1.0
-    epsilon: float = 0.05
-    T_ref: float = 298.15
+    n_gases: int = field(default=50, metadata={"ge": 2, "le": 2000})  # N
+    n_clusters: int = field(default=5, metadata={"ge": 1, "le": 2000})  # M
+    alpha: float = field(default=1.0, metadata={
+        "gt": 0.0, "le": 100.0})  # influence of the other gases
+    beta: float = field(default=1.0, metadata={
+        "gt": 0.0, "le": 100.0})  # interaction-ability constant
+    iterations: int = field(default=50, metadata={"ge": 1, "le": 10_000})  # Nc
+    l1: float = field(default=5e-2, metadata={"gt": 0.0, "le": 1e3})
+    l2: float = field(default=100.0, metadata={"gt": 0.0, "le": 1e6})
+    l3: float = field(default=1e-2, metadata={"gt": 0.0, "le": 1e3})
+    c1: float = field(default=0.1, metadata={"ge": 0.0, "lt": 1.0})  # worst-gas fraction, low
+    c2: float = field(default=0.2, metadata={"ge": 0.0, "lt": 1.0})  # worst-gas fraction, high
+    K: float = field(default=1.0, metadata={"gt": 0.0, "le": 1e3})
+    epsilon: float = field(default=0.05, metadata={"gt": 0.0, "le": 1.0})
+    T_ref: float = field(default=298.15, metadata={"gt": 0.0, "le": 1e4, "description": "K"})
 
     name = "hgso"
 
@@ -73,7 +75,7 @@ class HGSO(Optimiser):
         if not 0 <= self.c1 <= self.c2 < 1:
             raise ValueError("c1, c2: need 0 <= c1 <= c2 < 1")
 
-    def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
+    def _run(self, ev: Budget, rng: np.random.Generator) -> str:
         pb = ev.problem
         N, M = self.n_gases, self.n_clusters
         T = self.iterations if ev.max_evaluations is None else \
@@ -87,7 +89,7 @@ class HGSO(Optimiser):
         C = self.l3 * rng.random(M)
         F = ev.evaluate(X)
         for t in range(1, T + 1):
-            x_best, f_best = ev.best_x, ev.best_f
+            x_best, f_best = ev.best, ev.best_value
             X_cluster_best = np.empty((M, pb.dim))
             for j, idx in enumerate(members):
                 X_cluster_best[j] = X[idx[np.argmin(F[idx])]]

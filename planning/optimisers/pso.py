@@ -13,11 +13,11 @@ are uniform in ``[-v_max, v_max]``. Each iteration costs ``N`` evaluations.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .base import Evaluator, Optimiser
+from .base import Budget, Optimiser
 
 __all__ = ["PSO"]
 
@@ -26,13 +26,15 @@ __all__ = ["PSO"]
 class PSO(Optimiser):
     """Linearly-decreasing-inertia PSO; defaults = paper 003 Table 2."""
 
-    n_particles: int = 50  # N
-    w_start: float = 0.9
-    w_end: float = 0.4
-    c1: float = 2.0  # towards the particle's own best
-    c2: float = 2.0  # towards the swarm's best
-    iterations: int = 50  # Nc
-    v_max_fraction: float = 0.2
+    n_particles: int = field(default=50, metadata={"ge": 2, "le": 2000})  # N
+    w_start: float = field(default=0.9, metadata={"ge": 0.0, "le": 2.0})
+    w_end: float = field(default=0.4, metadata={"ge": 0.0, "le": 2.0})
+    c1: float = field(default=2.0, metadata={
+        "ge": 0.0, "le": 10.0})  # towards the particle's own best
+    c2: float = field(default=2.0, metadata={"ge": 0.0, "le": 10.0})  # towards the swarm's best
+    iterations: int = field(default=50, metadata={"ge": 1, "le": 10_000})  # Nc
+    v_max_fraction: float = field(default=0.2, metadata={
+        "gt": 0.0, "le": 1.0, "description": "fraction of the box width"})
 
     name = "pso"
 
@@ -47,7 +49,7 @@ class PSO(Optimiser):
         if not 0 < self.v_max_fraction <= 1:
             raise ValueError("v_max_fraction: must be in (0, 1]")
 
-    def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
+    def _run(self, ev: Budget, rng: np.random.Generator) -> str:
         pb = ev.problem
         N, D = self.n_particles, pb.dim
         T = self.iterations if ev.max_evaluations is None else \

@@ -39,11 +39,11 @@ Our readings where the paper is ambiguous or garbled (documented once, here):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .base import Evaluator, Optimiser
+from .base import Budget, Optimiser
 
 __all__ = ["WolfPack"]
 
@@ -52,15 +52,17 @@ __all__ = ["WolfPack"]
 class WolfPack(Optimiser):
     """Basic wolf pack algorithm; defaults = paper 000 Table 2."""
 
-    n_wolves: int = 100  # N
-    scout_fraction: float = 0.5  # alpha, read as the fraction of scouts
-    step_factor: float = 100.0  # S
-    max_walks: int = 10  # K_max
-    distance_factor: float = 3.0  # omega
-    update_ratio: float = 3.0  # beta
-    directions: int = 20  # h
-    iterations: int = 50  # T_max
-    max_summon_steps: int = 100  # our cap on one summoning
+    n_wolves: int = field(default=100, metadata={"ge": 3, "le": 1000})  # N
+    scout_fraction: float = field(default=0.5, metadata={
+        "gt": 0.0, "lt": 1.0})  # alpha, read as the fraction of scouts
+    step_factor: float = field(default=100.0, metadata={"ge": 1e-3, "le": 1e6})  # S
+    max_walks: int = field(default=10, metadata={"ge": 1, "le": 100})  # K_max
+    distance_factor: float = field(default=3.0, metadata={"ge": 1e-3, "le": 1e6})  # omega
+    update_ratio: float = field(default=3.0, metadata={"ge": 1e-3, "le": 1e3})  # beta
+    directions: int = field(default=20, metadata={"ge": 1, "le": 100})  # h
+    iterations: int = field(default=50, metadata={"ge": 1, "le": 10_000})  # T_max
+    max_summon_steps: int = field(default=100, metadata={
+        "ge": 0, "le": 1000})  # our cap on one summoning
 
     name = "wolfpack"
 
@@ -100,7 +102,7 @@ class WolfPack(Optimiser):
 
     # ---- the loop ---------------------------------------------------------------------------
 
-    def _run(self, ev: Evaluator, rng: np.random.Generator) -> str:
+    def _run(self, ev: Budget, rng: np.random.Generator) -> str:
         pb = ev.problem
         N, D = self.n_wolves, pb.dim
         span = np.asarray(pb.upper, float) - np.asarray(pb.lower, float)

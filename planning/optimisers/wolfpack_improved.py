@@ -22,7 +22,7 @@ change:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -44,8 +44,10 @@ def levy_steps(rng: np.random.Generator, shape, beta: float = 1.5) -> np.ndarray
 class ImprovedWolfPack(WolfPack):
     """Improved wolf pack (paper 000, 4.2); defaults = Table 2 plus the Lévy exponent."""
 
-    levy_lambda: float = 2.5  # paper's lambda in (1, 3]; Mantegna beta = lambda - 1
-    levy_weight: float = 0.01  # l = levy_weight (x - G)
+    levy_lambda: float = field(default=2.5, metadata={
+        "gt": 1.0, "le": 3.0})  # paper's lambda in (1, 3]; Mantegna beta = lambda - 1
+    levy_weight: float = field(default=0.01, metadata={
+        "ge": 0.0, "le": 10.0})  # l = levy_weight (x - G)
 
     name = "wolfpack_improved"
 

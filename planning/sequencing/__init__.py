@@ -8,13 +8,11 @@ above). Paper 002, sections 3.2 and 4.1.
 
 from __future__ import annotations
 
-from dataclasses import fields
 from typing import Any
 
 import numpy as np
 
-from kinematics.errors import FieldError
-
+from ..registry import algorithm_classes, make
 from .aco import ACO as ACO
 from .aga import AGA as AGA
 from .auto import Auto as Auto
@@ -22,7 +20,7 @@ from .base import ProgressFn as ProgressFn
 from .base import SequenceResult as SequenceResult
 from .base import SequencingProblem as SequencingProblem
 from .base import check_holes as check_holes
-from .base import held_karp as held_karp
+from .exact import held_karp as held_karp
 from .iga import IGA as IGA
 
 __all__ = [
@@ -40,27 +38,16 @@ __all__ = [
     "sequence_holes",
 ]
 
-#: Algorithm name -> parameter dataclass (defaults = the paper's).
-SEQUENCERS: dict[str, type] = {"iga": IGA, "aco": ACO, "aga": AGA, "auto": Auto}
+#: Algorithm name -> parameter dataclass (defaults = the paper's): the ``sequencer`` family
+#: of ``planning.registry``.
+SEQUENCERS: dict[str, type] = algorithm_classes("sequencer")
 
 
 def make_sequencer(algorithm: str, params: dict[str, Any] | None = None):
-    """The sequencer ``algorithm`` with ``params`` overriding its defaults. ``FieldError``
-    naming ``algorithm``, or ``params.<name>`` for an unknown or out-of-range parameter."""
-    if algorithm not in SEQUENCERS:
-        raise FieldError("algorithm", f"algorithm: must be one of {', '.join(SEQUENCERS)}, "
-                         f"got {algorithm!r}")
-    cls = SEQUENCERS[algorithm]
-    params = dict(params or {})
-    known = {f.name for f in fields(cls)}
-    for key in params:
-        if key not in known:
-            raise FieldError(("params", key), f"params.{key}: not a parameter of {algorithm} "
-                             f"(known: {', '.join(sorted(known))})")
-    try:
-        return cls(**params)
-    except TypeError as exc:  # a value of the wrong type reaching a comparison
-        raise FieldError("params", f"params: {exc}") from None
+    """The sequencer ``algorithm`` with ``params`` overriding its defaults:
+    ``registry.make("sequencer", algorithm, params)``. ``FieldError`` naming ``algorithm``,
+    or ``params.<name>`` for an unknown or out-of-range parameter."""
+    return make("sequencer", algorithm, params)
 
 
 def sequence_holes(

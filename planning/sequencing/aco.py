@@ -13,17 +13,13 @@ path length). All ants advance together, one vectorised step per hole.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .base import (
-    IterativeSequencer,
-    SequencingProblem,
-    Tracker,
-    bad_param,
-    nearest_neighbour,
-)
+from .base import SequencingProblem, bad_param
+from .iterative import Budget, IterativeSequencer
+from .local import nearest_neighbour
 
 __all__ = ["ACO"]
 
@@ -34,12 +30,12 @@ class ACO(IterativeSequencer):
 
     name = "aco"
 
-    ants: int = 50
-    alpha: float = 1.0
-    beta: float = 3.0
-    rho: float = 0.5
-    q: float = 1.0
-    iterations: int = 400
+    ants: int = field(default=50, metadata={"ge": 1, "le": 500})
+    alpha: float = field(default=1.0, metadata={"ge": 0.0, "le": 20.0})
+    beta: float = field(default=3.0, metadata={"ge": 0.0, "le": 20.0})
+    rho: float = field(default=0.5, metadata={"gt": 0.0, "le": 1.0})
+    q: float = field(default=1.0, metadata={"gt": 0.0, "le": 1e9})
+    iterations: int = field(default=400, metadata={"ge": 1, "le": 5000})
 
     def __post_init__(self) -> None:
         if self.ants < 1:
@@ -54,7 +50,7 @@ class ACO(IterativeSequencer):
         if self.iterations < 1:
             raise bad_param("iterations", "must be >= 1")
 
-    def _body(self, problem: SequencingProblem, rng: np.random.Generator, tr: Tracker) -> str:
+    def _body(self, problem: SequencingProblem, rng: np.random.Generator, tr: Budget) -> str:
         n, m = problem.n, self.ants
         # Rows 0..n-1: from a hole; row n: from the start. Columns: to a hole.
         dist = np.vstack([problem.D, problem.d0[None, :]])

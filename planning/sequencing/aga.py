@@ -19,16 +19,12 @@ describe its AGA beyond the reference.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .base import (
-    IterativeSequencer,
-    SequencingProblem,
-    Tracker,
-    bad_param,
-)
+from .base import SequencingProblem, bad_param
+from .iterative import Budget, IterativeSequencer
 
 __all__ = ["AGA", "order_crossover"]
 
@@ -39,12 +35,16 @@ class AGA(IterativeSequencer):
 
     name = "aga"
 
-    population: int = 50
-    crossover: float = 0.95
-    mutation: float = 0.05
-    iterations: int = 400
-    crossover_min: float = 0.6
-    mutation_min: float = 0.01
+    population: int = field(default=50, metadata={"ge": 2, "le": 1000, "description": "even"})
+    crossover: float = field(default=0.95, metadata={
+        "ge": 0.0, "le": 1.0, "description": "probability"})
+    mutation: float = field(default=0.05, metadata={
+        "ge": 0.0, "le": 1.0, "description": "probability"})
+    iterations: int = field(default=400, metadata={"ge": 1, "le": 20_000})
+    crossover_min: float = field(default=0.6, metadata={
+        "ge": 0.0, "le": 1.0, "description": "probability"})
+    mutation_min: float = field(default=0.01, metadata={
+        "ge": 0.0, "le": 1.0, "description": "probability"})
 
     def __post_init__(self) -> None:
         if self.population < 2 or self.population % 2:
@@ -65,7 +65,7 @@ class AGA(IterativeSequencer):
         span = max(f_max - f_avg, 1e-300)
         return np.where(f >= f_avg, hi - (hi - lo) * (f - f_avg) / span, hi)
 
-    def _body(self, problem: SequencingProblem, rng: np.random.Generator, tr: Tracker) -> str:
+    def _body(self, problem: SequencingProblem, rng: np.random.Generator, tr: Budget) -> str:
         n, P = problem.n, self.population
         pop = rng.random((P, n)).argsort(axis=1)
         L = tr.evaluate(pop)
@@ -90,9 +90,9 @@ class AGA(IterativeSequencer):
                 children[k, i : j + 1] = children[k, i : j + 1][::-1]
             child_L = tr.evaluate(children)
             worst = int(np.argmax(child_L))
-            if tr.best_length < child_L[worst]:
-                children[worst] = tr.best_order
-                child_L[worst] = tr.best_length
+            if tr.best_value < child_L[worst]:
+                children[worst] = tr.best
+                child_L[worst] = tr.best_value
             pop, L = children, child_L
             tr.end_iteration()
         return f"{self.iterations} generations"

@@ -22,23 +22,14 @@ face we tried and every other sequencer's best over 30 seeds on 40-200 holes
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .base import (
-    EXACT_MAX,
-    ProgressFn,
-    SequenceResult,
-    SequencingProblem,
-    Tracker,
-    bad_param,
-    double_bridge,
-    held_karp,
-    local_search,
-    nearest_neighbour,
-    run_tracked,
-)
+from .base import ProgressFn, SequenceResult, SequencingProblem, bad_param
+from .exact import EXACT_MAX, held_karp
+from .iterative import Budget, run_sequencing, sequencing_budget
+from .local import double_bridge, local_search, nearest_neighbour
 
 __all__ = ["Auto"]
 
@@ -47,12 +38,14 @@ __all__ = ["Auto"]
 class Auto:
     """Exact up to ``exact_max`` holes to order, iterated 2-opt/Or-opt search above."""
 
-    exact_max: int = 12
-    kicks: int = 1200
-    stall: int = 100
-    kick_segment: int = 15
-    threshold: float = 0.0
-    restarts: int = 12
+    exact_max: int = field(default=12, metadata={
+        "ge": 0, "le": 16, "description": "most holes solved exactly"})
+    kicks: int = field(default=1200, metadata={"ge": 0, "le": 100_000})
+    stall: int = field(default=100, metadata={"ge": 0, "le": 100_000})
+    kick_segment: int = field(default=15, metadata={"ge": 0, "le": 1000})
+    threshold: float = field(default=0.0, metadata={
+        "ge": 0.0, "le": 1.0, "description": "fraction longer than the best accepted"})
+    restarts: int = field(default=12, metadata={"ge": 1, "le": 200})
 
     def __post_init__(self) -> None:
         if not 0 <= self.exact_max <= EXACT_MAX:
@@ -69,11 +62,11 @@ class Auto:
         """Solve; ``history`` has one entry after each run's first descent and one per
         kick."""
         exact = problem.n <= max(self.exact_max, 3)
-        tr = Tracker(problem, 1 if exact else self.kicks + self.restarts, progress,
-                     max_evaluations)
-        return run_tracked(tr, lambda: self._body(problem, rng, tr, exact), "auto")
+        tr = sequencing_budget(problem, 1 if exact else self.kicks + self.restarts, progress,
+                               max_evaluations)
+        return run_sequencing(tr, lambda: self._body(problem, rng, tr, exact), "auto")
 
-    def _body(self, problem: SequencingProblem, rng: np.random.Generator, tr: Tracker,
+    def _body(self, problem: SequencingProblem, rng: np.random.Generator, tr: Budget,
               exact: bool) -> str:
         if exact:
             order, _ = held_karp(problem)

@@ -32,16 +32,12 @@ seeding) is added, so the comparison with ACO and AGA is the paper's.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .base import (
-    IterativeSequencer,
-    SequencingProblem,
-    Tracker,
-    bad_param,
-)
+from .base import SequencingProblem, bad_param
+from .iterative import Budget, IterativeSequencer
 
 __all__ = ["IGA", "greedy_crossover", "ruin_and_recreate"]
 
@@ -54,18 +50,24 @@ class IGA(IterativeSequencer):
 
     name = "iga"
 
-    population: int = 50
-    crossover: float = 0.95
-    mutation: float = 0.05
-    iterations: int = 400
-    p_swap: float = 0.2
-    p_reverse: float = 0.5
-    p_insert: float = 0.3
-    cooling: float = 0.99
-    tournament: int = 2
-    destroy_fraction: float = 0.3
-    removal: str = "mixed"
-    initial_temperature: float | None = None  # mm; None: mean nearest-neighbour distance
+    population: int = field(default=50, metadata={"ge": 2, "le": 500, "description": "even"})
+    crossover: float = field(default=0.95, metadata={
+        "ge": 0.0, "le": 1.0, "description": "probability"})
+    mutation: float = field(default=0.05, metadata={
+        "ge": 0.0, "le": 1.0, "description": "probability"})
+    iterations: int = field(default=400, metadata={"ge": 1, "le": 5000})
+    p_swap: float = field(default=0.2, metadata={
+        "ge": 0.0, "le": 1.0, "description": "probability"})
+    p_reverse: float = field(default=0.5, metadata={
+        "ge": 0.0, "le": 1.0, "description": "probability"})
+    p_insert: float = field(default=0.3, metadata={
+        "ge": 0.0, "le": 1.0, "description": "probability"})
+    cooling: float = field(default=0.99, metadata={"gt": 0.0, "le": 1.0})
+    tournament: int = field(default=2, metadata={"ge": 1, "le": 500})
+    destroy_fraction: float = field(default=0.3, metadata={"ge": 0.0, "le": 1.0})
+    removal: str = field(default="mixed", metadata={"choices": ("random", "related", "mixed")})
+    initial_temperature: float | None = field(default=None, metadata={
+        "gt": 0.0, "le": 1e7, "description": "mm; default the mean nearest-neighbour distance"})
 
     def __post_init__(self) -> None:
         if self.population < 2 or self.population % 2:
@@ -89,7 +91,7 @@ class IGA(IterativeSequencer):
             raise bad_param("initial_temperature", "must be positive")
 
     def _body(self, problem: SequencingProblem, rng: np.random.Generator,
-              tr: Tracker) -> str:
+              tr: Budget) -> str:
         n, P = problem.n, self.population
         pop = rng.random((P, n)).argsort(axis=1)
         fit = tr.evaluate(pop)
@@ -121,9 +123,9 @@ class IGA(IterativeSequencer):
             T *= self.cooling
             # 5. elitism
             worst = int(np.argmax(child_fit))
-            if tr.best_length < child_fit[worst]:
-                children[worst] = tr.best_order
-                child_fit[worst] = tr.best_length
+            if tr.best_value < child_fit[worst]:
+                children[worst] = tr.best
+                child_fit[worst] = tr.best_value
             pop, fit = children, child_fit
             tr.end_iteration()
         return f"{self.iterations} generations"

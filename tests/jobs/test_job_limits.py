@@ -21,6 +21,7 @@ from app.jobs.kinds import Params
 from app.jobs.tracking_kinds import MAX_STEPS, MAX_TUNING_WORK
 from app.main import create_app
 from app.store import _MIGRATIONS, Store
+from planning.registry import FAMILIES, Algorithm
 
 from .conftest import wait_for
 
@@ -154,14 +155,15 @@ def test_one_batch_of_obstacle_checks_must_fit_in_memory(client):
     assert post(client, "path", params).status_code == 202
 
 
-def test_every_planner_dataclass_field_has_a_cap():
+def test_every_planner_dataclass_field_has_a_cap(monkeypatch):
     @dataclass(frozen=True)
     class Planner:
-        iterations: int = 10
+        iterations: int = dataclasses.field(default=10, metadata={"ge": 1, "le": 100})
         fresh_knob: int = 3
 
+    monkeypatch.setitem(FAMILIES["path"].algorithms, "x", Algorithm("path", "x", Planner))
     with pytest.raises(TypeError, match="fresh_knob"):
-        planner_params._from_dataclass("x", Planner, Planner(), {"iterations": int})
+        planner_params.knobs_model("path", "x")
 
 
 def _unbounded(schema: dict) -> list[str]:

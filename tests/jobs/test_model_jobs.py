@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import sqlite3
+
 import numpy as np
+import pytest
 
 from kinematics.fk import fk
 from kinematics.library import builtin_model
@@ -115,3 +118,109 @@ def test_duplicate_samples_do_not_break_the_map():
                         np.zeros(3), np.ones(3))
     assert learned.kernel == "quintic"
     assert np.allclose(learned._interp(features[:10]), targets[:10], atol=1e-6)
+
+
+# ---- which trained model answers ---------------------------------------------------------
+def _ik_train_result(robot: str, seed: int) -> tuple[str, np.ndarray]:
+    """A valid ``ik_train`` result JSON for ``robot`` with a small map of its own, and the
+    map's features (what tells two trained models apart)."""
+    from app.jobs.model_kinds import IKTrainResult
+    from kinematics.learned_ik import LearnedIK
+
+    rng = np.random.default_rng(seed)
+    learned = LearnedIK(robot, rng.uniform(-1, 1, (30, 3)), rng.uniform(0, 1, (30, 3)),
+                        np.ones(3, bool), np.zeros(3), np.zeros(3), np.ones(3))
+    zero = 0.0
+    report = {"samples": 30, "train": 24, "test": 6, "max_relative_joint_error": zero,
+              "mean_relative_joint_error": zero, "per_joint": [zero] * 3,
+              "max_position_error": zero, "mean_position_error": zero,
+              "max_rotation_error": zero, "polished_max_position_error": zero,
+              "polished_max_rotation_error": zero, "polished_success": 1.0}
+    result = IKTrainResult(robot=robot, posture="free", fixed={}, report=report,
+                           paper={"max_relative_joint_error": 0.0062,
+                                  "max_position_error": 2.94},
+                           learned=learned.to_dict())
+    return result.model_dump_json(), learned.features
+
+
+@pytest.fixture
+def manager(tmp_path):
+    """A job manager on its own store, its backend not started: jobs are written directly."""
+    from app.jobs.manager import JobManager
+    from app.registry import RobotRegistry
+    from app.store import Store
+
+    store = Store(tmp_path / "jobs.sqlite3")
+    return JobManager(store, RobotRegistry(store), "local", 1, 10)
+
+
+def _finished(store, job_id: str, kind: str, robot: str, status: str = "succeeded",
+              result: str | None = None) -> None:
+    store.add_job(job_id, kind, {"robot": robot}, {})
+    store.finish_job(job_id, status, result_json=result,
+                     error=None if status == "succeeded" else "boom")
+
+
+def _reads(store, monkeypatch) -> list[str]:
+    """The ids of the jobs whose results are read from now on."""
+    read: list[str] = []
+    real = store.job_result
+
+    def spy(job_id: str):
+        read.append(job_id)
+        return real(job_id)
+
+    monkeypatch.setattr(store, "job_result", spy)
+    return read
+
+
+def test_a_second_trained_model_replaces_the_first(manager, monkeypatch):
+    store = manager.store
+    read = _reads(store, monkeypatch)
+    assert manager.learned_ik("glt_palletizer") is None
+    first, f1 = _ik_train_result("glt_palletizer", 1)
+    _finished(store, "first", "ik_train", "glt_palletizer", result=first)
+    job_id, learned = manager.learned_ik("glt_palletizer")
+    assert job_id == "first" and np.array_equal(learned.features, f1)
+    assert manager.learned_ik("glt_palletizer")[1] is learned  # cached: read once
+    assert read == ["first"]
+    second, f2 = _ik_train_result("glt_palletizer", 2)
+    _finished(store, "second", "ik_train", "glt_palletizer", result=second)
+    job_id, learned = manager.learned_ik("glt_palletizer")
+    assert job_id == "second" and np.array_equal(learned.features, f2)
+    assert read == ["first", "second"]
+
+
+def test_the_lookup_reads_no_other_kind_robot_or_status(manager, monkeypatch):
+    """Newer jobs of another kind (with a result that is no ``ik_train`` result), for
+    another robot (one whose id a pattern would match), or that failed, are passed over
+    without reading their results; the query goes through an index."""
+    store = manager.store
+    text, features = _ik_train_result("glt_palletizer", 1)
+    _finished(store, "trained", "ik_train", "glt_palletizer", result=text)
+    _finished(store, "calibrated", "calibrate", "glt_palletizer", result='{"not": "ik"}')
+    other, _ = _ik_train_result("glt_palletizer_2", 2)
+    _finished(store, "other-robot", "ik_train", "glt_palletizer_2", result=other)
+    _finished(store, "failed", "ik_train", "glt_palletizer", status="failed")
+    read = _reads(store, monkeypatch)
+    statements: list[str] = []
+    real_open = store._open
+
+    def traced(*args, **kwargs):
+        conn = real_open(*args, **kwargs)
+        conn.set_trace_callback(statements.append)
+        return conn
+
+    monkeypatch.setattr(store, "_open", traced)
+    job_id, learned = manager.learned_ik("glt_palletizer")
+    assert job_id == "trained" and np.array_equal(learned.features, features)
+    assert read == ["trained"]
+    # The look-up is one SELECT of at most one job that searches an index: it never lists
+    # every job.
+    selects = [s for s in statements if s.lstrip().upper().startswith("SELECT")
+               and "FROM jobs" in s and "result_json" not in s]
+    assert len(selects) == 1 and "LIMIT 1" in selects[0], statements
+    with sqlite3.connect(store.path) as conn:
+        plan = " | ".join(row[3] for row in conn.execute(f"EXPLAIN QUERY PLAN {selects[0]}"))
+    assert "USING INDEX" in plan and "SCAN jobs" not in plan, plan
+    assert manager.learned_ik("glt_palletiz%") is None

@@ -16,8 +16,9 @@ import pytest
 from kinematics.cylinders import CylinderSet
 from kinematics.errors import FieldError
 from kinematics.fk import fk, fk_frames
+from kinematics.ik.position import REACH_TOL, reach
 from kinematics.library import builtin_model
-from planning.arm_paths import REACH_TOL, arm_clearance, plan_arm_path, reach
+from planning.arm_paths import arm_clearance, plan_arm_path
 from planning.scene import Scene
 from planning.status import PlanStatus
 

@@ -20,6 +20,7 @@ from planning.drilling.iapf import IAPF
 from planning.drilling.multiarm import (
     PAPER_ACCELERATION_BOUND,
     ROTATIONAL_JOINTS,
+    FaceOptions,
     MotionLimits,
     make_planner,
     pair_distances,
@@ -287,3 +288,56 @@ def test_the_final_check_sees_overlaps(rig, env):
     assert d["left-middle"].min() < -300 and d["left-middle"][0] > 0
     np.testing.assert_allclose(d["left-middle"], pair_distances(rig, env, q)["left-middle"])
     assert np.all(d["middle-right"] == d["middle-right"][0])
+
+
+# ---- the steps of a face plan ----------------------------------------------------------------
+@pytest.mark.parametrize("options, loc", [
+    ({"middle_park": "away"}, ("middle_park",)),
+    ({"standoff": -1.0}, ("standoff",)),
+    ({"standoff": 2001.0}, ("standoff",)),
+    ({"drill_time_s": -0.5}, ("drill_time_s",)),
+    ({"check_dt": 0.5}, ("check_dt",)),
+])
+def test_face_options_name_the_field_at_fault(rig, options, loc):
+    from planning.drilling.allocation import assign_holes
+
+    with pytest.raises(FieldError) as err:
+        FaceOptions(**options)
+    assert err.value.loc == loc
+    with pytest.raises(FieldError) as err:
+        plan_face(rig, None, allocation=assign_holes(rig, SMALL_FACE), **options)
+    assert err.value.loc == loc
+
+
+def test_the_fallback_is_the_other_planner_with_the_same_safety_margin():
+    main, backup = FaceOptions(planner="iapf", planner_params={"safety": 123.0}).move_planners()
+    assert isinstance(main, IAPF) and isinstance(backup, RRTConnect)
+    assert main.safety == backup.safety == 123.0
+    main, backup = FaceOptions(planner="rrt").move_planners()
+    assert isinstance(main, RRTConnect) and isinstance(backup, IAPF)
+    main, backup = FaceOptions(planner="rrt", fallback=False).move_planners()
+    assert isinstance(main, RRTConnect) and backup is None
+
+
+def test_side_arms_that_would_meet_run_one_after_the_other(rig):
+    """Left and right holes on each other's side, no middle holes: running at once the side
+    arms cross, so the right arm waits until the left arm is done (and the plan, whose
+    right-arm holes the parked left arm blocks, is reported as failing, never as clear)."""
+    from planning.drilling.allocation import assign_holes
+
+    crossing = {"left": [[FACE_X, 1500, 5000], [FACE_X, -1500, 5200]],
+                "right": [[FACE_X, -1500, 4800], [FACE_X, 1500, 5100]]}
+    fp = plan_face(rig, None, allocation=assign_holes(rig, crossing), seed=1)
+    assert fp.extras["notes"] == ["right waits for left: running at once they would meet"]
+    assert fp.middle_park == "none" and not fp.arms["middle"].timeline.moves
+    left, right = fp.arms["left"].timeline, fp.arms["right"].timeline
+    assert left.starts[0] == 0.0
+    assert right.starts[0] == pytest.approx(left.end)
+    assert set(fp.min_distance) == set(fp.collisions) == {"left-middle", "left-right",
+                                                          "middle-right"}
+    assert not fp.success and fp.collisions["left-right"] > 0
+    assert any(m.startswith("left-right: envelopes overlap") for m in fp.messages)
+    # the right arm's failed moves are those of its final (waiting) plan
+    right_moves = [m for m in fp.messages if m.startswith("right move ")]
+    assert len(right_moves) == len(set(right_moves)) == sum(
+        not mv.success for mv in right.moves)

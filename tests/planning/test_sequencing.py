@@ -24,15 +24,15 @@ from planning.sequencing import (
     make_sequencer,
     sequence_holes,
 )
-from planning.sequencing.base import (
-    brute_force,
+from planning.sequencing.exact import brute_force
+from planning.sequencing.iga import greedy_crossover, ruin_and_recreate
+from planning.sequencing.local import (
     double_bridge,
     local_search,
     nearest_neighbour,
     or_opt,
     two_opt,
 )
-from planning.sequencing.iga import greedy_crossover, ruin_and_recreate
 
 
 def random_face(n: int, seed: int) -> np.ndarray:

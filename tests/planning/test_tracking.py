@@ -7,9 +7,8 @@ import numpy as np
 import pytest
 
 from kinematics.fk import fk
-from kinematics.jacobian import jacobian_and_pose
+from kinematics.jacobian import PositionJacobian
 from kinematics.library import builtin_model
-from kinematics.model import RobotModel
 from planning.tracking import (
     DEFAULT_GAINS,
     TUNERS,
@@ -18,7 +17,6 @@ from planning.tracking import (
     GainBounds,
     LineTask,
     PIGains,
-    PositionJacobian,
     TrackingConfig,
     default_start,
     simulate,
@@ -41,21 +39,6 @@ def hgso_runs():
         tuned = tune_gains(ARM, task, "hgso", 0, iterations=SHORT)
         out[task.kind] = (task, tuned, simulate(ARM, task, tuned.gains))
     return out
-
-
-@pytest.mark.parametrize("moved_base", [False, True])
-def test_position_jacobian_matches_the_library(moved_base):
-    model = ARM
-    if moved_base:
-        data = ARM.to_dict()
-        c, s = np.cos(0.7), np.sin(0.7)
-        data["base"] = [[c, -s, 0, 100.0], [s, c, 0, -50.0], [0, 0, 1, 30.0], [0, 0, 0, 1]]
-        model = RobotModel.from_dict(data)
-    q = np.random.default_rng(0).uniform(model.lower, model.upper, size=(64, model.dof))
-    p, J = PositionJacobian(model)(q)
-    J_ref, T_ref = jacobian_and_pose(model, q)
-    np.testing.assert_allclose(p, T_ref[:, :3, 3], atol=1e-9)
-    np.testing.assert_allclose(J, J_ref[:, :3], atol=1e-9)
 
 
 def test_default_start_is_bent_and_inside_the_reach():

@@ -42,7 +42,7 @@ def test_reproducible_by_seed_and_reports_progress(name):
     opt = TUNERS[name](iterations=5)
     seen: list[float] = []
     a = opt.minimize(SPHERE, np.random.default_rng(11), progress=seen.append,
-                     max_evaluations=10_000)  # the Evaluator reports progress against a budget
+                     max_evaluations=10_000)  # the Budget reports progress against a budget
     b = opt.minimize(SPHERE, np.random.default_rng(11))
     c = opt.minimize(SPHERE, np.random.default_rng(12))
     np.testing.assert_array_equal(a.x, b.x)

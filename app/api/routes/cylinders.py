@@ -12,9 +12,17 @@ import numpy as np
 from fastapi import APIRouter, HTTPException
 from fastapi.responses import JSONResponse
 
-from kinematics.cylinders import CylinderError, CylinderSet, cylinder_set
+from kinematics.cylinders import (
+    CylinderError,
+    CylinderSet,
+    JointLimit,
+    LimitCause,
+    cylinder_set,
+    diagnose_limits,
+)
 from kinematics.ik import IKStatus, solve_ik
 from kinematics.model import RobotModel
+from kinematics.numbers import finite_or_none
 
 from ..cylinder_schemas import (
     CylindersInverseRequest,
@@ -108,35 +116,31 @@ def joints_from_cylinders(robot: RobotDep, body: CylindersInverseRequest) -> JSO
     })
 
 
-def _finite_or_none(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
+#: How each cause of ``kinematics.cylinders.diagnose_limits`` reads in a message.
+_CAUSE_TEXT = {
+    LimitCause.CANNOT_CLOSE: "which cylinder '{name}''s linkage cannot take",
+    LimitCause.BELOW_STROKE: "cylinder '{name}' would be {length:.1f} mm, below its retracted "
+                             "{min_length:.1f} mm",
+    LimitCause.BEYOND_STROKE: "cylinder '{name}' would be {length:.1f} mm, beyond its extended "
+                              "{max_length:.1f} mm",
+    LimitCause.JOINT_STOP: "within the stroke of cylinder '{name}' but past the joint stop",
+    LimitCause.DEAD_POINT: "past the dead point of cylinder '{name}' (no length of it gives "
+                           "this)",
+}
 
 
-def _limit_story(robot: RobotModel, cyl: CylinderSet, q: np.ndarray) -> str:
-    """What the nearest out-of-limits solution ``q (dof,)`` asks of each joint it violates
-    and of the cylinders driving those joints."""
-    lengths = cyl.lengths(q)
+def _limit_story(diagnosis: tuple[JointLimit, ...]) -> str:
+    """In words: what the nearest out-of-limits solution asks of each joint it violates and
+    of the cylinders driving those joints."""
     parts = []
-    for i, j in enumerate(robot.joints):
-        if j.lower - 1e-9 <= q[i] <= j.upper + 1e-9:
-            continue
+    for d in diagnosis:
         part = (
-            f"joint '{j.name}' needs {math.degrees(q[i]):.1f} deg (limits "
-            f"{math.degrees(j.lower):.1f} .. {math.degrees(j.upper):.1f} deg)"
+            f"joint '{d.name}' needs {math.degrees(d.value):.1f} deg (limits "
+            f"{math.degrees(d.lower):.1f} .. {math.degrees(d.upper):.1f} deg)"
         )
-        for name in (n for n in cyl.names if cyl.joint_of(n) == i):
-            L = float(lengths[name])
-            lo, hi = cyl.limits(name)
-            if not math.isfinite(L):
-                part += f", which cylinder '{name}''s linkage cannot take"
-            elif L < lo:
-                part += f", cylinder '{name}' would be {L:.1f} mm, below its retracted {lo:.1f} mm"
-            elif L > hi:
-                part += f", cylinder '{name}' would be {L:.1f} mm, beyond its extended {hi:.1f} mm"
-            elif abs(cyl.joints_from_lengths({name: L})[i] - q[i]) < 1e-6:
-                part += f", within the stroke of cylinder '{name}' but past the joint stop"
-            else:
-                part += f", past the dead point of cylinder '{name}' (no length of it gives this)"
+        for c in d.cylinders:
+            part += ", " + _CAUSE_TEXT[c.cause].format(
+                name=c.name, length=c.length, min_length=c.min_length, max_length=c.max_length)
         parts.append(part)
     return "; ".join(parts)
 
@@ -160,8 +164,8 @@ def pose_to_cylinders(robot: RobotDep, body: PoseToCylindersRequest) -> JSONResp
         "status": r.status.value,
         "message": r.message,
         "method": r.method,
-        "position_error": _finite_or_none(r.position_error),
-        "rotation_error": _finite_or_none(r.rotation_error),
+        "position_error": finite_or_none(r.position_error),
+        "rotation_error": finite_or_none(r.rotation_error),
     }
     if r.success:
         return JSONResponse({
@@ -170,7 +174,7 @@ def pose_to_cylinders(robot: RobotDep, body: PoseToCylindersRequest) -> JSONResp
         })
     message = f"no cylinder lengths: {r.message}"
     if r.status is IKStatus.OUT_OF_LIMITS and len(r.solutions):
-        story = _limit_story(robot, cyl, r.solutions[0])
+        story = _limit_story(diagnose_limits(robot, r.solutions[0], cyl))
         if story:
             message += f"; the nearest solution: {story}"
     return JSONResponse({

@@ -8,12 +8,13 @@ import numpy as np
 from fastapi import APIRouter, Request, Response
 from starlette.concurrency import run_in_threadpool
 
-from kinematics.drilling import check_drilling_structure, drill_ik
+from kinematics.drilling import drill_ik, roll_joint
 from kinematics.errors import FieldError, MethodUnavailableError
 from kinematics.fk import fk, fk_frames
 from kinematics.ik import prepare_targets, solve_ik
 from kinematics.jacobian import dexterity, jacobian_and_pose
 from kinematics.model import RobotModel
+from kinematics.numbers import finite_or_none
 from kinematics.transforms import pose_errors
 from kinematics.workspace import MAX_SAMPLES, sample_workspace, workspace_report
 
@@ -63,10 +64,6 @@ def joint_rows(model: RobotModel, q: list, field: str = "q") -> tuple[np.ndarray
         raise invalid(loc, f"joint values beyond {MAX_JOINT_VALUE:.0e} (rad or mm) are not "
                       "physical")
     return q_arr, single
-
-
-def _finite_or_none(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
 
 
 #: Above these sizes a request is computed in a worker process (``app.compute``).
@@ -171,8 +168,8 @@ def _ik_json(r) -> dict:
         "status": r.status.value,
         "q": None if r.q is None else r.q.tolist(),
         "solutions": r.solutions.tolist(),
-        "position_error": _finite_or_none(r.position_error),
-        "rotation_error": _finite_or_none(r.rotation_error),
+        "position_error": finite_or_none(r.position_error),
+        "rotation_error": finite_or_none(r.rotation_error),
         "within_limits": bool(r.within_limits),
         "singular": bool(r.singular),
         "method": r.method,
@@ -226,12 +223,11 @@ async def drilling_ik(robot: RobotDep, body: DrillIKRequest, request: Request) -
         raise too_large(["holes"], f"at most {MAX_DRILL_HOLES} holes per call, got "
                         f"{len(holes)}")
     try:
-        check_drilling_structure(robot)
+        roll = roll_joint(robot)
     except ValueError as exc:
         raise http_error(422, ["path", "robot_id"], f"not a drilling arm: {exc}",
                          "value_error") from None
-    roll = robot.joints[3]
-    if not roll.lower <= body.roll <= roll.upper:
+    if not roll.within(body.roll):
         raise invalid(["roll"], f"outside the {roll.name} joint's limits "
                       f"[{roll.lower:.4g}, {roll.upper:.4g}] rad")
     try:
