@@ -8,7 +8,7 @@ import io
 import numpy as np
 from matplotlib.figure import Figure
 
-from planning.trajectory import Samples
+from planning.trajectories.trajectory import Samples
 
 __all__ = ["trajectory_png", "tracking_png"]
 

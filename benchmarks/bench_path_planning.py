@@ -28,9 +28,9 @@ import time
 
 import numpy as np
 
-from planning.auto_planner import certified_shortest_path
 from planning.paths import path_length, plan_path
-from planning.scene import Scene
+from planning.paths.auto import certified_shortest_path
+from planning.paths.scene import Scene
 
 START, GOAL = np.array([1.0, 1.0, 1.0]), np.array([100.0, 100.0, 100.0])
 PAPER_TABLE4 = {"improved": 3832.23, "basic": 4593.62}  # average path, mm

@@ -28,7 +28,7 @@ import numpy as np
 
 from kinematics.library import builtin_model
 from planning.paths import plan_path
-from planning.scene import Scene
+from planning.paths.scene import Scene
 from planning.sequencing import sequence_holes
 from planning.tracking import GainBounds, LineTask, tracking_fitness
 

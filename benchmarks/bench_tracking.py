@@ -26,7 +26,7 @@ from planning.tracking import (
     LineTask,
     simulate,
 )
-from planning.tracking_stats import TrackingTable, format_table3, tracking_table
+from planning.tracking.stats import TrackingTable, format_table3, tracking_table
 
 ROBOT = "hyper_redundant_9dof"
 TASKS = {"line": LineTask(), "ellipse": EllipseTask()}

@@ -2,7 +2,7 @@
 
 * ``path``: ``plan_path``'s ``algorithm`` (parameters ``params``): the metaheuristics of
   ``planning.optimisers`` ``wolfpack_improved``, ``wolfpack``, ``ga``, ``aca``, ``afsa``, and
-  ``rrt_star`` and ``auto`` (``planning.auto_planner``);
+  ``rrt_star`` and ``auto`` (``planning.paths.auto``);
 * ``sequencer``: ``sequence_holes``' ``algorithm`` (``params``) and ``plan_face``'s
   ``sequencer`` (``sequencer_params``): ``iga``, ``aco``, ``aga``, ``auto``;
 * ``move_planner``: ``plan_face``'s ``planner`` (``planner_params``): ``iapf``, ``rrt``;
@@ -69,7 +69,7 @@ __all__ = [
 # ---- knobs plan_path takes besides the algorithm's own -------------------------------------
 @dataclass(frozen=True)
 class ShortcutParams:
-    """What ``plan_path`` does with every planner's path (``paths.shortcut``)."""
+    """What ``plan_path`` does with every planner's path (``planning.paths.encoding.shortcut``)."""
 
     shortcut: bool = field(default=True, metadata={"description": "shorten the found path"})
     random_shortcuts: int = field(default=100, metadata={
@@ -79,7 +79,8 @@ class ShortcutParams:
 @dataclass(frozen=True)
 class MetaheuristicParams(ShortcutParams):
     """What ``plan_path`` takes for every metaheuristic besides its optimiser's own: the
-    encoding (``paths.PathEncoding``), the penalised cost and the evaluation budget."""
+    encoding (``planning.paths.encoding.PathEncoding``), the penalised cost and the
+    evaluation budget."""
 
     waypoints: int = field(default=5, metadata={
         "ge": 1, "le": 50, "description": "intermediate waypoints of the encoding"})
@@ -89,10 +90,10 @@ class MetaheuristicParams(ShortcutParams):
         "ge": 1, "le": 100_000_000, "description": "evaluation budget"})
 
 
-# ---- the path planners that are not metaheuristics (``auto_planner``) ---------------------
+# ---- the path planners that are not metaheuristics (``planning.paths.auto``) --------------
 @dataclass(frozen=True)
 class AutoPlannerParams:
-    """Options of ``auto_planner.plan_auto`` (its defaults)."""
+    """Options of ``planning.paths.auto.plan_auto`` (its defaults)."""
 
     samples: int = field(default=150, metadata={
         "ge": 4, "le": 2000, "description": "surface samples per obstacle"})
@@ -104,7 +105,7 @@ class AutoPlannerParams:
 
 @dataclass(frozen=True)
 class RRTStarParams:
-    """Options of ``auto_planner.plan_rrt_star`` (its defaults)."""
+    """Options of ``planning.paths.auto.plan_rrt_star`` (its defaults)."""
 
     samples: int = field(default=3000, metadata={"ge": 1, "le": 20_000})
     step: float | None = field(default=None, metadata={

@@ -5,9 +5,10 @@
 * ``kinematics`` and ``planning`` never import ``app`` or ``web``, counting imports inside
   functions;
 * no import cycle among the modules of ``app``, ``kinematics``, ``planning`` and ``web``
-  beyond the known ones listed below (imports inside functions count, and so do literal
-  module names handed to ``importlib.import_module``; ``if TYPE_CHECKING:`` blocks, which
-  never run, do not).
+  (imports inside functions count, and so do literal module names handed to
+  ``importlib.import_module``; ``if TYPE_CHECKING:`` blocks, which never run, do not);
+* the metaheuristics never import a path planner (the planners build on them);
+* every module of ``kinematics`` and ``planning`` imports on its own, first.
 """
 
 from __future__ import annotations
@@ -35,15 +36,9 @@ EXPECTED = {
                  "PlanStatus", "sequence_holes", "plan_arm_path", "simulate", "tune_gains"},
 }
 
-#: Import cycles that exist today, as the sets of modules that import one another (strongly
-#: connected components). Each is broken at run time by an import inside a function; the test
-#: fails on any cycle that is not inside one of these.
-KNOWN_CYCLES = [
-    # paths imports auto_planner in plan_path and builds its optimisers through the
-    # registry, which names the optimiser modules for importlib (loaded on first use);
-    # auto_planner imports paths' shortcut and aca paths' encoding, each inside a function.
-    {"planning.paths", "planning.auto_planner", "planning.optimisers.aca", "planning.registry"},
-]
+#: Import cycles tolerated, as the sets of modules that import one another (strongly
+#: connected components): none. The test fails on any cycle that is not inside one of these.
+KNOWN_CYCLES: list[set[str]] = []
 
 
 # ---- the public names ------------------------------------------------------------------
@@ -282,17 +277,50 @@ def test_libraries_never_import_app_or_web(package):
 
 def test_the_graph_sees_imports_inside_functions():
     graph = import_graph()
-    assert "planning.auto_planner" in graph["planning.paths"]  # inside plan_path
+    assert "planning.paths.arm" in graph["app.jobs.path_kinds"]  # inside run_path
     assert "planning.optimisers.aca" in graph["planning.registry"]  # by importlib
-    assert "planning.paths" in graph["planning.optimisers.aca"]  # inside a method
+    assert "planning.paths.encoding" in graph["planning.optimisers.aca"]
+    assert "planning.optimisers.aca" in graph["planning.paths.planners"]
     cycle = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
     assert strongly_connected(cycle) == [{"a", "b", "c"}]
     assert a_cycle(cycle, {"a", "b", "c"}) == ["a", "b", "c", "a"]
 
 
-def test_no_new_import_cycles():
+def test_no_import_cycles():
     graph = import_graph()
     new = [component for component in strongly_connected(graph)
            if not any(component <= known for known in KNOWN_CYCLES)]
-    assert not new, "new import cycles: " + "; ".join(
+    assert not new, "import cycles: " + "; ".join(
         " -> ".join(a_cycle(graph, component)) for component in new)
+
+
+def test_optimisers_never_import_path_planners():
+    """The path planners import the optimisers, never the reverse: an optimiser may use the
+    shared lower modules of ``planning.paths`` (the scene, the encoding) and nothing above."""
+    lower = {"planning.paths", "planning.paths.encoding", "planning.paths.scene"}
+    graph = import_graph()
+    offenders = sorted(
+        f"{module} imports {name}"
+        for module in MODULES if module.startswith("planning.optimisers")
+        for name in graph[module] if name.startswith("planning.paths") and name not in lower)
+    assert not offenders, offenders
+
+
+def test_every_library_module_imports_first():
+    """Each module of ``kinematics`` and ``planning`` imports in a fresh state (its packages'
+    ``__init__`` files run first, which the graph above does not model)."""
+    modules = sorted(m for m in MODULES if m.split(".")[0] in LIBRARIES)
+    code = (
+        "import importlib, sys\n"
+        f"failed = []\nfor name in {modules!r}:\n"
+        "    for m in [m for m in sys.modules if m.split('.')[0] in {LIBRARIES!r}]:\n"
+        "        del sys.modules[m]\n"
+        "    try:\n"
+        "        importlib.import_module(name)\n"
+        "    except Exception as exc:\n"
+        "        failed.append(f'{name}: {exc!r}')\n"
+        "print(failed)\n"
+    ).replace("{LIBRARIES!r}", repr(LIBRARIES))
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                          text=True, timeout=120, check=True)
+    assert done.stdout.strip() == "[]", done.stdout

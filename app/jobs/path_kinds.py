@@ -4,14 +4,14 @@
 Scenes are validated here, at the API edge, so a bad scene is a 422 naming the field
 (``params.scene.obstacles.2.radius``, ``params.start``): the pydantic models check shapes
 and signs per field, and ``start``/``goal`` are checked against the scene (inside an
-obstacle, outside the bounds) by field validators that reuse ``planning.scene``'s messages.
+obstacle, outside the bounds) by field validators that reuse ``planning.paths.scene``'s messages.
 
 ``robot`` is optional, so the kind is registered with ``needs_robot=False``; when the service
 attaches the robot's model it is used, else a built-in robot is looked up by id.
 
 The scene is built once per process: ``SceneIn.to_scene()`` keeps what it built, so the
 checks of ``start`` and ``goal`` and the run (in the worker, on the params rebuilt there)
-share one ``planning.scene.Scene``.
+share one ``planning.paths.scene.Scene``.
 
 Planner ``params`` are free-form in the contract but checked against the planner's bounded
 model (``planner_params``): every knob capped, and one batch of obstacle checks within
@@ -92,9 +92,9 @@ class ObstacleIn(StrictModel):
 
     @model_validator(mode="after")
     def _complete(self):
-        """The fields this type needs, and no others (planning.scene's checks, which name
+        """The fields this type needs, and no others (planning.paths.scene's checks, which name
         the field within the obstacle)."""
-        from planning.scene import obstacle_from_dict
+        from planning.paths.scene import obstacle_from_dict
 
         obstacle_from_dict(self.to_plain())
         return self
@@ -119,9 +119,9 @@ class SceneIn(StrictModel):
         return v
 
     def to_scene(self):
-        """The ``planning.scene.Scene`` (built on the first call, then kept); ValueError
+        """The ``planning.paths.scene.Scene`` (built on the first call, then kept); ValueError
         names ``obstacles[i].<field>``."""
-        from planning.scene import Scene
+        from planning.paths.scene import Scene
 
         if self._scene is None:
             self._scene = Scene.create(self.bounds, [o.to_plain() for o in self.obstacles],
@@ -130,7 +130,7 @@ class SceneIn(StrictModel):
 
 
 class ArmOptions(StrictModel):
-    """Options of a path planned for a robot's tool (see ``planning.arm_paths``)."""
+    """Options of a path planned for a robot's tool (see ``planning.paths.arm``)."""
 
     link_radius: (Annotated[float, Field(ge=0, le=MAX_LINK_RADIUS_MM)]
                   | Annotated[list[Annotated[float, Field(ge=0, le=MAX_LINK_RADIUS_MM)]],
@@ -219,7 +219,7 @@ class PathCylinders(Result):
 
 
 class PathResult(Result):
-    """A planned path; with ``robot``, for that robot's tool (``planning.arm_paths``)."""
+    """A planned path; with ``robot``, for that robot's tool (``planning.paths.arm``)."""
 
     path: list[XYZ] = Field(description="Start to goal, mm; empty when no clear path was "
                             "found")
@@ -250,8 +250,8 @@ class PathResult(Result):
 def run_path(params: PathParams, progress: Progress) -> PathResult:
     """Plan one path; with ``robot``, for that robot's tool (reach, whole-arm clearance,
     joint trajectory, cylinder lengths)."""
-    from planning.arm_paths import plan_arm_path
     from planning.paths import plan_path
+    from planning.paths.arm import plan_arm_path
 
     scene = params.scene.to_scene()
 
@@ -324,7 +324,7 @@ class PathCompareResult(Result):
 
 def run_path_compare(params: PathCompareParams, progress: Progress) -> PathCompareResult:
     """Every algorithm over ``runs`` seeds: rows of best/mean length, mean time, successes."""
-    from planning.path_compare import compare_planners
+    from planning.paths.compare import compare_planners
 
     rows = compare_planners(params.scene.to_scene(), params.start, params.goal,
                             params.algorithms, params.runs, params.seed, params.params,

@@ -40,7 +40,7 @@ __all__ = ["TrackingParams", "TrackingResult", "run_tracking", "plot_tracking", 
 
 #: Most runs one job may ask for (the paper's 30).
 MAX_RUNS = 30
-#: Most control steps of one simulated run (``planning.tracking.MAX_STEPS``).
+#: Most control steps of one simulated run (``planning.tracking.simulator.MAX_STEPS``).
 MAX_STEPS = 20_000
 #: Most control steps x (tuner iterations + 1) x runs of a tuned job: each unit is one step
 #: simulated for a population of 50, about 0.25 ms, so the largest job takes ~25 minutes.

@@ -4,8 +4,8 @@ Paper 002, sections 3.3-3.4 and 4.2. For each arm: its holes (``allocation``), t
 drilling order as an open path from the arm's parked position (``planning.sequencing``),
 and a transfer between consecutive holes planned in joint space (``iapf.IAPF`` or the
 ``rrt.RRTConnect`` baseline) around the other arms' parked envelopes, smoothed with the
-quintic B-spline of eqs. 14-18 (``planning.bspline.quintic_bspline``) and time-scaled to
-the rate limits (``planning.time_scaling.fit_to_limits``).
+quintic B-spline of eqs. 14-18 (``planning.trajectories.bspline.quintic_bspline``) and
+time-scaled to the rate limits (``planning.trajectories.time_scaling.fit_to_limits``).
 
 A move between holes: the feed retracts the drill ``standoff`` mm from the face (rest to
 rest quintic), the boom transfers with the feed keeping the tip that far in front of the
@@ -44,12 +44,12 @@ from kinematics.errors import FieldError
 from kinematics.fk import fk
 from kinematics.rigs import Rig
 
-from ..bspline import quintic_bspline
 from ..registry import algorithm_classes, make
 from ..sequencing import SequenceResult, sequence_holes
 from ..status import PlanStatus
-from ..time_scaling import fit_to_limits
-from ..trajectory import Limits, Trajectory
+from ..trajectories.bspline import quintic_bspline
+from ..trajectories.time_scaling import fit_to_limits
+from ..trajectories.trajectory import Limits, Trajectory
 from .allocation import Allocation, allocate_holes, home_configuration
 from .envelopes import (
     ArmEnvelope,

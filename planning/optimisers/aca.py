@@ -14,9 +14,11 @@ iteration the pheromone on every node evaporates, ``tau <- (1 - rho) tau``, and 
 arrived deposits ``Q / L`` on its nodes. Grid size and window are ours (the paper prints
 none).
 
-This needs the scene, not just a box, so ``plan_layers`` is the entry point ``paths.plan_path``
-uses for paths. ``minimize`` is the same colony on a generic box problem: each coordinate is
-a "slice" of ``grid`` levels and there is no heuristic.
+This needs the scene, not just a box, so ``plan_layers`` is the entry point
+``planning.paths.plan_path`` uses for paths (with the path encoding of
+``planning.paths.encoding``, which imports no planner). ``minimize`` is the same colony on a
+generic box problem: each coordinate is a "slice" of ``grid`` levels and there is no
+heuristic.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..paths.encoding import PathEncoding
 from .base import Budget, OptimResult, Problem, ProgressFn, run_with_budget
 
 __all__ = ["AntColony"]
@@ -132,8 +135,6 @@ class AntColony:
         ``extra["path"]`` is the full polyline ``(n_slices + 2, 3)`` (None if no ant ever
         arrived). ``margin`` defaults to the scene's safety margin plus the encoding's slack.
         """
-        from ..paths import PathEncoding
-
         start, goal = np.asarray(start, float), np.asarray(goal, float)
         enc = PathEncoding(scene, start, goal, self.n_slices, penalty)
         margin = enc.planning_margin if margin is None else margin

@@ -136,7 +136,7 @@ def submit(client, kind: str, params: dict):
 
 
 @pytest.mark.parametrize("kind, params, loc, words", [
-    # An obstacle grown over the start: planning.scene names the start.
+    # An obstacle grown over the start: planning.paths.scene names the start.
     ("path", {"scene": SCENE | {"obstacles": [{"center": [30, 30, 30], "radius": 60}]},
               "start": [1, 1, 1], "goal": [100, 100, 100]},
      ["start"], "start is inside obstacles[0]"),

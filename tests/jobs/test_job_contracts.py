@@ -245,7 +245,7 @@ def test_the_manager_stores_the_typed_payload(tmp_path):
 
 def test_a_path_job_builds_its_scene_once(monkeypatch):
     from app.jobs.path_kinds import run_path
-    from planning.scene import Scene
+    from planning.paths.scene import Scene
 
     built = []
     create = Scene.create.__func__

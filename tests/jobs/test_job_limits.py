@@ -129,9 +129,9 @@ def test_tracking_work_is_capped(client):
 
 
 def test_tracking_step_cap_matches_the_simulator():
-    from planning import tracking
+    from planning.tracking import simulator
 
-    assert MAX_STEPS == tracking.MAX_STEPS
+    assert MAX_STEPS == simulator.MAX_STEPS
 
 
 def test_arm_trajectory_samples_are_capped(client):

@@ -65,7 +65,7 @@ ARM_GOAL = [1810.28587111, 0.0, 267.5709755]
 def test_path_jobs_through_the_api(client):
     """Four jobs at once (two workers): a path, an arm path, the paper's unreachable goal and
     a comparison. Each worker process pays the planning imports, so they share one test."""
-    from planning.scene import Scene
+    from planning.paths.scene import Scene
 
     from .conftest import wait_for
 

@@ -18,8 +18,8 @@ from kinematics.errors import FieldError
 from kinematics.fk import fk, fk_frames
 from kinematics.ik.position import REACH_TOL, reach
 from kinematics.library import builtin_model
-from planning.arm_paths import arm_clearance, plan_arm_path
-from planning.scene import Scene
+from planning.paths.arm import arm_clearance, plan_arm_path
+from planning.paths.scene import Scene
 from planning.status import PlanStatus
 
 Q_START = np.array([-0.9, 0.5, -0.6, -0.4, 0.0, 0.0])

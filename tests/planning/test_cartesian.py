@@ -7,7 +7,7 @@ import pytest
 
 from kinematics.fk import fk
 from kinematics.library import builtin_model
-from planning.cartesian import ellipse_points, follow_path, line_points
+from planning.trajectories.cartesian import ellipse_points, follow_path, line_points
 
 
 def test_ellipse_points_lie_on_the_ellipse_evenly_spaced():

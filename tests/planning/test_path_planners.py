@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from kinematics.errors import FieldError
-from planning.auto_planner import certified_shortest_path
 from planning.optimisers.ga import GeneticAlgorithm
 from planning.optimisers.wolfpack import WolfPack
 from planning.optimisers.wolfpack_improved import ImprovedWolfPack, levy_steps
 from planning.paths import ALGORITHMS, PathEncoding, path_length, plan_path, shortcut
-from planning.scene import Scene
+from planning.paths.auto import certified_shortest_path
+from planning.paths.scene import Scene
 from planning.status import PlanStatus
 
 START, GOAL = [1.0, 1.0, 1.0], [100.0, 100.0, 100.0]

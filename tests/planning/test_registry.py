@@ -23,14 +23,9 @@ from planning.drilling.rrt import RRTConnect
 from planning.optimisers.acor import ACOR
 from planning.optimisers.ga import GeneticAlgorithm
 from planning.optimisers.wolfpack import WolfPack
-from planning.paths import (
-    ALGORITHMS,
-    DEFAULT_PENALTY,
-    DEFAULT_RANDOM_SHORTCUTS,
-    DEFAULT_WAYPOINTS,
-    make_optimiser,
-    plan_path,
-)
+from planning.paths.encoding import DEFAULT_PENALTY, DEFAULT_RANDOM_SHORTCUTS
+from planning.paths.planners import ALGORITHMS, DEFAULT_WAYPOINTS, make_optimiser, plan_path
+from planning.paths.scene import Scene
 from planning.registry import (
     FAMILIES,
     AutoPlannerParams,
@@ -43,7 +38,6 @@ from planning.registry import (
     make,
     register,
 )
-from planning.scene import Scene
 from planning.sequencing import ACO, SEQUENCERS, make_sequencer
 from planning.tracking import TUNERS, make_tuner
 

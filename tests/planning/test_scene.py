@@ -1,4 +1,4 @@
-"""Exact segment–obstacle distances and scene validation (planning.scene)."""
+"""Exact segment–obstacle distances and scene validation (planning.paths.scene)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 from scipy.optimize import minimize_scalar
 
 from kinematics.errors import FieldError
-from planning.scene import (
+from planning.paths.scene import (
     Scene,
     obstacle_from_dict,
     segment_box_distance,

@@ -1,4 +1,4 @@
-"""Paper 003's Table 3 statistics (``planning.tracking_stats``) on a short run: repeated
+"""Paper 003's Table 3 statistics (``planning.tracking.stats``) on a short run: repeated
 tunings by seed, worst-case max, mean of eq. 24, mean error fluctuation, the rank-sum test
 against untuned PI, progress, and the table's layout next to the paper's values."""
 
@@ -10,7 +10,7 @@ import pytest
 from kinematics.fk import fk
 from kinematics.library import builtin_model
 from planning.tracking import UNTUNED_PI_GAINS, LineTask, simulate, tune_gains
-from planning.tracking_stats import TrackingTable, TunerStats, format_table3, tracking_table
+from planning.tracking.stats import TrackingTable, TunerStats, format_table3, tracking_table
 
 ARM = builtin_model("hyper_redundant_9dof")
 TASK = LineTask(length=100.0, duration=5.0)

@@ -9,8 +9,8 @@ from hypothesis import strategies as st
 
 from kinematics.library import builtin_model
 from planning import Limits, plan_trajectory, quintic_segments, sextic_via
-from planning.bspline import paper_control_points, paper_evaluate, quintic_bspline
-from planning.time_scaling import fit_to_limits
+from planning.trajectories.bspline import paper_control_points, paper_evaluate, quintic_bspline
+from planning.trajectories.time_scaling import fit_to_limits
 
 
 @pytest.fixture

@@ -348,10 +348,10 @@ def test_workspace_button_runs_a_job_and_shows_the_cloud(api):
 # ---- plans of other kinds -----------------------------------------------------------------
 def _line_path_result(model: RobotModel):
     """A ``path`` result in the documented shape, from real library calls: a straight tool line
-    mapped through IK (planning.cartesian) past a sphere, clearance by planning.scene. Not
-    the output of a path planner (none is registered here)."""
-    from planning.cartesian import follow_path, line_points
-    from planning.scene import Scene
+    mapped through IK (planning.trajectories.cartesian) past a sphere, clearance by
+    planning.paths.scene. Not the output of a path planner (none is registered here)."""
+    from planning.paths.scene import Scene
+    from planning.trajectories.cartesian import follow_path, line_points
 
     q0 = model.mid_configuration()
     T0 = fk(model, q0)

@@ -12,8 +12,8 @@ from kinematics.errors import FieldError
 from kinematics.fk import fk
 from kinematics.model import RobotModel
 from planning import Limits, Trajectory, plan_trajectory
-from planning.cartesian import ellipse_points, follow_path, line_points
-from planning.time_scaling import fit_to_limits
+from planning.trajectories.cartesian import ellipse_points, follow_path, line_points
+from planning.trajectories.time_scaling import fit_to_limits
 
 from ...compute import encode_json
 from ...plots import trajectory_png

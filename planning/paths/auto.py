@@ -13,7 +13,7 @@ path from above and approaches it as samples grow. Tests hold ``plan_auto`` to w
 it.
 
 ``plan_rrt_star``: RRT* (Karaman & Frazzoli 2011) with exact edge checks, seeded; a sampling
-baseline (the spec's "sampling planner"), shortened afterwards by ``paths.shortcut``.
+baseline (the spec's "sampling planner"), shortened afterwards by ``encoding.shortcut``.
 
 Lengths in mm; points ``(3,)``; paths ``(n, 3)``.
 """
@@ -31,9 +31,10 @@ from scipy.sparse.csgraph import dijkstra
 
 from kinematics.errors import FieldError
 
-from .optimisers.base import ProgressFn
+from ..budget import ProgressFn
+from ..status import PlanStatus
+from .encoding import planning_slack, shortcut
 from .scene import Scene
-from .status import PlanStatus
 
 __all__ = ["RawPlan", "visibility_graph_path", "certified_shortest_path", "tighten",
            "plan_auto", "plan_rrt_star"]
@@ -49,12 +50,6 @@ class RawPlan:
     evaluations: int
     extra: dict = field(default_factory=dict)
     status: PlanStatus = PlanStatus.OK
-
-
-def _slack(scene: Scene) -> float:
-    from .paths import SLACK_FRACTION
-
-    return SLACK_FRACTION * scene.diagonal
 
 
 def _obstacle_size(scene: Scene, i: int) -> float:
@@ -92,7 +87,7 @@ def visibility_graph_path(scene: Scene, start, goal, samples: int, rel_offset: f
     angle to that plane exceeds twice the sample spacing never helps. Box samples, start and
     goal keep all their edges.
     """
-    margin = scene.safety_margin + _slack(scene) if margin is None else margin
+    margin = scene.safety_margin + planning_slack(scene) if margin is None else margin
     start, goal = np.asarray(start, float), np.asarray(goal, float)
     pts, nrm = [start[None], goal[None]], [np.zeros((2, 3))]
     tol = min(1.0, 2.0 * math.sqrt(4 * math.pi / samples))
@@ -219,7 +214,7 @@ def tighten(scene: Scene, path, margin: float | None = None, rounds: int = 3,
     path = np.asarray(path, dtype=float)
     if len(path) <= 2 or not scene.obstacles:
         return path
-    margin = scene.safety_margin + _slack(scene) if margin is None else margin
+    margin = scene.safety_margin + planning_slack(scene) if margin is None else margin
     best = path
     for k in range(rounds):
         P = best if k == 0 else _refine(scene, best, margin)
@@ -265,8 +260,6 @@ def plan_auto(scene: Scene, start, goal, rng: np.random.Generator, *,
         return RawPlan(None, np.empty(0), edges, {
             "message": "auto: no clear path in the visibility graph: start and goal may be "
                        "separated by obstacles"}, PlanStatus.NO_PATH)
-    from .paths import shortcut
-
     graph_len = _length(path)
     path = shortcut(scene, path)
     path = tighten(scene, path, rounds=rounds)
@@ -298,7 +291,7 @@ def plan_rrt_star(scene: Scene, start, goal, rng: np.random.Generator, *,
         if bad:
             raise FieldError(("params", name), "params: samples >= 1, step > 0, "
                              "0 <= goal_bias <= 1, gamma > 0")
-    margin = scene.safety_margin + _slack(scene)
+    margin = scene.safety_margin + planning_slack(scene)
     start, goal = np.asarray(start, float), np.asarray(goal, float)
 
     def clear(a: np.ndarray, b: np.ndarray) -> np.ndarray:

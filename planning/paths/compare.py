@@ -19,7 +19,7 @@ import numpy as np
 from kinematics.errors import FieldError
 from kinematics.numbers import finite_or_none
 
-from .paths import ALGORITHMS, PathResult, plan_path
+from .planners import ALGORITHMS, PathResult, plan_path
 from .scene import Scene
 
 __all__ = ["CompareRow", "compare_planners"]

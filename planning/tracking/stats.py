@@ -26,16 +26,8 @@ from scipy.stats import ranksums
 
 from kinematics.model import RobotModel
 
-from .tracking import (
-    UNTUNED_PI_GAINS,
-    Controller,
-    GainBounds,
-    PIGains,
-    Task,
-    TrackingConfig,
-    simulate,
-    tune_gains,
-)
+from .simulator import UNTUNED_PI_GAINS, Controller, PIGains, Task, TrackingConfig, simulate
+from .tuning import GainBounds, tune_gains
 
 __all__ = ["TunerStats", "TrackingTable", "tracking_table", "format_table3", "LABELS",
            "SIGNIFICANCE"]

@@ -7,7 +7,7 @@ Pipeline of ``plan_arm_path``:
    not how it is turned) from a seeded table of in-limit configurations. An unreachable
    endpoint is a clear failure naming why (e.g. the paper's goal [1800, 1800, 800] mm lies
    2669 mm from pile_driver's base, beyond its ~1916 mm reach).
-2. The tool path is planned among the obstacles with ``paths.plan_path``.
+2. The tool path is planned among the obstacles with ``planners.plan_path``.
 3. The path is sampled densely (``spacing`` mm) and each sample solved by damped least
    squares on the position, starting from the previous sample's joints and projected onto
    the joint limits, so the arm stays on one branch and within its limits. A sample the
@@ -42,12 +42,12 @@ from kinematics.ik.position import position_dls as _dls
 from kinematics.model import RobotModel
 from kinematics.numbers import finite_or_none
 
-from .bspline import quintic_bspline
-from .optimisers.base import ProgressFn
-from .paths import PathResult, plan_path
-from .scene import Capsule, Scene
-from .status import PlanStatus
-from .trajectory import Trajectory
+from ..budget import ProgressFn
+from ..status import PlanStatus
+from ..trajectories.bspline import quintic_bspline
+from ..trajectories.trajectory import Trajectory
+from .planners import PathResult, plan_path
+from .scene import Capsule, Scene, segment_point_distance
 
 __all__ = ["ArmPathResult", "plan_arm_path", "link_capsules", "arm_clearance"]
 
@@ -436,8 +436,6 @@ def _result(tool: PathResult, samples: _Samples, traj: Trajectory, waypoints: np
 
 def _deviation(points: np.ndarray, path: np.ndarray) -> float:
     """Largest distance (mm) from ``points (M, 3)`` to the polyline ``path (n, 3)``."""
-    from .scene import segment_point_distance
-
     d, _ = segment_point_distance(path[None, :-1], path[None, 1:], points[:, None, :])
     return float(d.min(axis=1).max())
 
