@@ -58,6 +58,8 @@ class Budget(Generic[P]):
         self.best_value = math.inf
         self.history: list[float] = []
         self.started = time.perf_counter()
+        #: Whether ``run`` ended because the evaluation budget was spent.
+        self.spent = False
 
     @property
     def elapsed_s(self) -> float:
@@ -108,4 +110,5 @@ class Budget(Generic[P]):
         try:
             return body() or "finished"
         except BudgetExhausted:
+            self.spent = True
             return "evaluation budget spent"

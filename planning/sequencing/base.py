@@ -194,7 +194,9 @@ class SequencingProblem:
 @dataclass(frozen=True)
 class SequenceResult:
     """A drilling order: ``order (N,)`` hole indices, ``length`` of the open path from the
-    start (mm), ``history`` = best length after each iteration (mm)."""
+    start (mm), ``history`` = best length after each iteration (mm). A sequencer always
+    answers with an order; ``budget_spent`` says it is the best found before the evaluation
+    budget ran out rather than at the end of its iterations."""
 
     order: np.ndarray
     length: float
@@ -205,3 +207,4 @@ class SequenceResult:
     algorithm: str
     message: str = ""
     extra: dict = field(default_factory=dict)
+    budget_spent: bool = False

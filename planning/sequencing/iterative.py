@@ -40,7 +40,7 @@ def run_sequencing(budget: Budget[SequencingProblem], body: Callable[[], str | N
         order=budget.problem.hole_order(budget.best), length=budget.best_value,
         history=np.array(budget.history), runtime_s=budget.elapsed_s,
         evaluations=budget.evaluations, iterations=len(budget.history), algorithm=algorithm,
-        message=message,
+        message=message, budget_spent=budget.spent,
     )
 
 

@@ -100,7 +100,9 @@ def test_run_reports_how_the_body_ended():
         while True:
             b.evaluate([[1.0]])
 
+    assert not b.spent
     assert b.run(greedy) == "evaluation budget spent"
+    assert b.spent
     assert b.elapsed_s >= 0.0
 
 
@@ -151,4 +153,5 @@ def test_a_sequencer_stops_at_its_evaluation_budget():
     holes = np.c_[np.full(30, 9000.0), rng.uniform(-3000, 3000, 30), rng.uniform(0, 6000, 30)]
     res = sequence_holes(holes, None, "aco", 1, {"iterations": 50}, max_evaluations=137)
     assert res.evaluations == 137 and res.message == "evaluation budget spent"
+    assert res.budget_spent
     assert len(res.history) == res.iterations < 50
