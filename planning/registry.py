@@ -325,34 +325,27 @@ register("path", "rrt_star", RRTStarParams, shared=ShortcutParams,
 register("path", "auto", AutoPlannerParams, shared=ShortcutParams,
          summary="near-shortest path: visibility graph, shortcutting and tightening (ours)")
 
-for _name, _module, _cls, _summary in (
-    ("iga", "planning.sequencing.iga", "IGA", "improved genetic algorithm (paper 002)"),
-    ("aco", "planning.sequencing.aco", "ACO",
+for _kind, _name, _module, _cls, _summary in (
+    ("sequencer", "iga", "planning.sequencing.iga", "IGA",
+     "improved genetic algorithm (paper 002)"),
+    ("sequencer", "aco", "planning.sequencing.aco", "ACO",
      "ant colony hole sequencer, Ant System (paper 002's baseline)"),
-    ("aga", "planning.sequencing.aga", "AGA",
+    ("sequencer", "aga", "planning.sequencing.aga", "AGA",
      "adaptive genetic algorithm (paper 002's baseline)"),
-    ("auto", "planning.sequencing.auto", "Auto",
+    ("sequencer", "auto", "planning.sequencing.auto", "Auto",
      "near-optimal order: exact on small faces, iterated 2-opt/Or-opt above (ours)"),
-):
-    register("sequencer", _name, (_module, _cls), summary=_summary)
-
-for _name, _module, _cls, _summary in (
-    ("iapf", "planning.drilling.iapf", "IAPF",
+    ("move_planner", "iapf", "planning.drilling.iapf", "IAPF",
      "improved artificial potential field in joint space (paper 002)"),
-    ("rrt", "planning.drilling.rrt", "RRTConnect",
+    ("move_planner", "rrt", "planning.drilling.rrt", "RRTConnect",
      "joint-space RRT-Connect (paper 002's baseline)"),
-):
-    register("move_planner", _name, (_module, _cls), summary=_summary)
-
-for _name, _module, _cls, _summary in (
-    ("hgso", "planning.optimisers.hgso", "HGSO",
+    ("tuner", "hgso", "planning.optimisers.hgso", "HGSO",
      "Henry gas solubility optimisation (paper 003)"),
-    ("pso", "planning.optimisers.pso", "PSO", "particle swarm optimisation (paper 003)"),
-    ("ga", "planning.optimisers.ga", "GeneticAlgorithm",
+    ("tuner", "pso", "planning.optimisers.pso", "PSO", "particle swarm optimisation (paper 003)"),
+    ("tuner", "ga", "planning.optimisers.ga", "GeneticAlgorithm",
      "real-coded genetic algorithm with paper 003's settings"),
-    ("aco", "planning.optimisers.acor", "ACOR",
+    ("tuner", "aco", "planning.optimisers.acor", "ACOR",
      "ACO_R, ant colony for continuous variables (paper 003)"),
-    ("gwo", "planning.optimisers.gwo", "GWO", "grey wolf optimiser (paper 003)"),
+    ("tuner", "gwo", "planning.optimisers.gwo", "GWO", "grey wolf optimiser (paper 003)"),
 ):
-    register("tuner", _name, (_module, _cls), summary=_summary)
-del _name, _module, _cls, _preset, _summary
+    register(_kind, _name, (_module, _cls), summary=_summary)
+del _kind, _name, _module, _cls, _preset, _summary

@@ -84,6 +84,8 @@ def knobs_models(family: str) -> dict[str, type[Knobs]]:
 PATH_KNOBS = knobs_models("path")
 SEQUENCER_KNOBS = knobs_models("sequencer")
 MOVE_PLANNER_KNOBS = knobs_models("move_planner")
+_KNOBS = {"path": PATH_KNOBS, "sequencer": SEQUENCER_KNOBS,
+          "move_planner": MOVE_PLANNER_KNOBS}
 
 
 def knobs_schema(models: dict[str, type[Knobs]], description: str) -> dict[str, Any]:
@@ -128,31 +130,32 @@ def validate_knobs(models: dict[str, type[Knobs]], algorithm: str, value: dict |
     return checked.model_dump(exclude_unset=True, exclude_none=True)
 
 
+def family_knobs(family: str, name: str, value: dict | None, prefix: str, loc: tuple = ()
+                 ) -> dict[str, Any] | None:
+    """Params of algorithm ``name`` of a registry family, capped, then built (so the
+    algorithm's own cross checks run as well)."""
+    value = validate_knobs(_KNOBS[family], name, value, prefix, loc)
+    if value is not None:
+        make(family, name, value)
+    return value
+
+
 def path_knobs(algorithm: str, value: dict | None, prefix: str = "params", loc: tuple = ()
                ) -> dict[str, Any] | None:
-    """A path planner's params, capped, then built (the optimiser's own cross checks)."""
-    value = validate_knobs(PATH_KNOBS, algorithm, value, prefix, loc)
-    if value is not None:
-        make("path", algorithm, value)
-    return value
+    """A path planner's params, capped, then built."""
+    return family_knobs("path", algorithm, value, prefix, loc)
 
 
 def sequencer_knobs(algorithm: str, value: dict | None, prefix: str = "params"
                     ) -> dict[str, Any] | None:
     """A hole sequencer's params, capped, then built."""
-    value = validate_knobs(SEQUENCER_KNOBS, algorithm, value, prefix)
-    if value is not None:
-        make("sequencer", algorithm, value)
-    return value
+    return family_knobs("sequencer", algorithm, value, prefix)
 
 
 def move_planner_knobs(planner: str, value: dict | None, prefix: str = "planner_params"
                        ) -> dict[str, Any] | None:
     """A multi-arm move planner's params, capped, then built."""
-    value = validate_knobs(MOVE_PLANNER_KNOBS, planner, value, prefix)
-    if value is not None:
-        make("move_planner", planner, value)
-    return value
+    return family_knobs("move_planner", planner, value, prefix)
 
 
 # ---- memory of one batch of obstacle checks ----------------------------------------------
