@@ -1,5 +1,6 @@
-"""PNG plots for reports: joint trajectories (position, velocity, acceleration, jerk) and
-tool tracking runs (paper 003 Figure 7: joint angles, joint speeds, error per axis, error)."""
+"""PNG plots for reports: joint trajectories (position, velocity, acceleration, jerk, and for
+hydraulic arms cylinder speeds and pump flow) and tool tracking runs (paper 003 Figure 7:
+joint angles, joint speeds, error per axis, error)."""
 
 from __future__ import annotations
 
@@ -26,18 +27,29 @@ def trajectory_png(
     joint_units: list[str],
     title: str = "",
     breaks: np.ndarray | None = None,
+    hydraulic: dict | None = None,
 ) -> bytes:
     """Four stacked panels (position, velocity, acceleration, jerk) of every joint; dashed
-    vertical lines at the segment joins ``breaks``. Units per joint: 'rad' or 'mm'."""
+    vertical lines at the segment joins ``breaks``. Units per joint: 'rad' or 'mm'.
+
+    ``hydraulic`` (robots with cylinders) adds a cylinder-speed panel and, when ``flow`` is
+    given, a pump-flow panel: ``{"names": [C], "speeds": (S, C) mm/s, "max_extension",
+    "max_retraction": (C,) mm/s (inf: none), "flow": (S,) L/min or None, "pump_flow": L/min
+    or None}``; limits are drawn dashed in each cylinder's colour."""
     unit = "/".join(sorted(set(joint_units))) or "rad"
-    fig = Figure(figsize=(8.0, 9.0), dpi=100)  # no pyplot: no global state, thread-safe
-    axes = fig.subplots(4, 1, sharex=True)
+    extra = 0 if hydraulic is None else 1 + (hydraulic.get("flow") is not None)
+    rows = 4 + extra
+    fig = Figure(figsize=(8.0, 9.0 + 2.0 * extra), dpi=100)  # no pyplot: thread-safe
+    axes = fig.subplots(rows, 1, sharex=True)
     for ax, (attr, label) in zip(axes, _ROWS):
         values = getattr(samples, attr)
         for j, name in enumerate(joint_names):
             ax.plot(samples.t, values[:, j], label=f"{name} [{joint_units[j]}]", linewidth=1.2)
         suffix = {"q": "", "qd": "/s", "qdd": "/s²", "qddd": "/s³"}[attr]
         ax.set_ylabel(f"{label}\n[{unit}{suffix}]")
+    if hydraulic is not None:
+        _hydraulic_panels(axes[4:], samples.t, hydraulic)
+    for ax in axes:
         ax.grid(True, alpha=0.3)
         if breaks is not None:
             for b in breaks[1:-1]:
@@ -45,6 +57,28 @@ def trajectory_png(
     axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     axes[-1].set_xlabel("time [s]")
     return _png(fig, title)
+
+
+def _hydraulic_panels(axes, t: np.ndarray, hydraulic: dict) -> None:
+    """Cylinder speeds with their extension (+) and retraction (-) limits; pump flow."""
+    ax = axes[0]
+    speeds = np.asarray(hydraulic["speeds"])
+    for c, name in enumerate(hydraulic["names"]):
+        (line,) = ax.plot(t, speeds[:, c], label=name, linewidth=1.2)
+        for lim, sign in ((hydraulic["max_extension"][c], 1.0),
+                          (hydraulic["max_retraction"][c], -1.0)):
+            if np.isfinite(lim):
+                ax.axhline(sign * lim, color=line.get_color(), linestyle=":", linewidth=0.8)
+    ax.set_ylabel("cylinder speed\n[mm/s]")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    if len(axes) > 1:
+        ax = axes[1]
+        ax.plot(t, hydraulic["flow"], color="k", linewidth=1.2, label="flow")
+        if hydraulic.get("pump_flow") is not None:
+            ax.axhline(hydraulic["pump_flow"], color="0.4", linestyle="--", linewidth=0.8,
+                       label=f"pump {hydraulic['pump_flow']:.3g} L/min")
+        ax.set_ylabel("pump flow\n[L/min]")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
 
 
 def tracking_png(

@@ -20,9 +20,14 @@ retracted, ``max_length`` the extended length). Cylinder speed (mm/s) is
 ``CylinderSet.from_model(model)`` reads the list under the model's ``"cylinders"`` key (kept in
 ``model.extras``); see ``kinematics/robots/pile_driver.json`` for the format. Each joint is
 driven by at most one mechanism; joints without one (e.g. the pile driver's slewing joint,
-driven by a motor) are passed through. ``check()`` says, in words, where stroke limits and
-joint limits disagree; ``diagnose_limits`` says, for a configuration outside the joint limits
-(e.g. the nearest IK solution of a pose), what it asks of each joint and cylinder at fault.
+driven by a motor) are passed through. Each cylinder may also carry its hydraulics
+(``CylinderHydraulics``: ``max_extension_speed``, ``max_retraction_speed`` in mm/s, ``bore``
+and ``rod`` diameters in mm), and the robot a pump (``pump_flow`` in L/min shared by the
+cylinders named in ``pump_cylinders``, default all with bore and rod): the limits that time
+scaling of a hydraulic arm respects (``planning.trajectories.hydraulic``). ``check()``
+says, in words, where stroke limits and joint limits disagree; ``diagnose_limits`` says,
+for a configuration outside the joint limits (e.g. the nearest IK solution of a pose), what
+it asks of each joint and cylinder at fault.
 
 Pin points (``CylinderSet.pins``, each mechanism's ``pins``) are given in the *joint plane*
 of the joint a mechanism drives: a 2-D frame (mm) fixed to the carrying link (the link
@@ -56,16 +61,21 @@ from .model import MAX_LENGTH_MM, RobotModel
 __all__ = [
     "CHECK_SAMPLES",
     "LENGTH_TOL",
+    "HYDRAULIC_KEYS",
+    "MAX_CYLINDER_SPEED",
+    "MAX_PUMP_FLOW",
     "MAX_STROKE_MARGIN",
     "PAIR_LENGTH_TOL",
     "CylinderError",
     "CylinderLimit",
+    "CylinderHydraulics",
     "CylinderPins",
     "CylinderSet",
     "FourBarCylinder",
     "JointLimit",
     "LimitCause",
     "Mechanism",
+    "Pump",
     "SwingCylinderPair",
     "TriangleCylinder",
     "cylinder_set",
@@ -83,6 +93,15 @@ CHECK_SAMPLES = 2001
 PAIR_LENGTH_TOL = 0.5
 
 _TWO_PI = 2.0 * math.pi
+
+#: Optional hydraulic fields of one cylinder: speeds in mm/s, diameters in mm.
+HYDRAULIC_KEYS = ("max_extension_speed", "max_retraction_speed", "bore", "rod")
+#: Largest cylinder speed a model may give (mm/s): 100 m/s, beyond any hydraulic cylinder.
+MAX_CYLINDER_SPEED = 1e5
+#: Largest pump flow a model may give (L/min).
+MAX_PUMP_FLOW = 1e5
+#: Litres per minute in mm^3/s.
+LPM_TO_MM3_PER_S = 1e6 / 60.0
 
 
 class CylinderError(FieldError, KinematicsError):
@@ -629,6 +648,83 @@ class SwingCylinderPair:
         return [p for c in self.sides for p in c.check(samples, tol, max_margin)]
 
 
+# ---- hydraulics: cylinder speeds, areas and the pump ------------------------------------
+
+
+def _positive(value: Any, key: str, bound: float) -> float:
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or \
+            not math.isfinite(value):
+        raise CylinderError(key, f"must be a finite number, got {value!r}")
+    if not 0 < value <= bound:
+        raise CylinderError(key, f"must be positive and at most {bound:g}, got {value:g}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class CylinderHydraulics:
+    """The hydraulic side of one cylinder, every field optional: the largest extension and
+    retraction speeds (mm/s) and the bore (piston) and rod diameters (mm). Oil flow is
+    ``piston_area * speed`` while extending and ``annulus_area * speed`` while retracting.
+
+    >>> h = CylinderHydraulics("boom", 150.0, 200.0, bore=100.0, rod=60.0)
+    >>> round(h.piston_area), round(h.annulus_area)  # mm^2
+    (7854, 5027)
+    """
+
+    name: str
+    max_extension_speed: float | None = None
+    max_retraction_speed: float | None = None
+    bore: float | None = None
+    rod: float | None = None
+
+    def __post_init__(self) -> None:
+        for key in ("max_extension_speed", "max_retraction_speed"):
+            if getattr(self, key) is not None:
+                _positive(getattr(self, key), key, MAX_CYLINDER_SPEED)
+        for key in ("bore", "rod"):
+            if getattr(self, key) is not None:
+                _positive(getattr(self, key), key, MAX_LENGTH_MM)
+        if (self.bore is None) != (self.rod is None):
+            missing = "rod" if self.rod is None else "bore"
+            raise CylinderError(missing, "bore and rod are given together (the oil flow needs "
+                                "both the piston and the annulus area)")
+        if self.bore is not None and self.rod >= self.bore:
+            raise CylinderError("rod", f"the rod diameter {self.rod:g} mm must be smaller than "
+                                f"the bore {self.bore:g} mm")
+
+    @property
+    def has_areas(self) -> bool:
+        return self.bore is not None
+
+    @property
+    def piston_area(self) -> float:
+        """Area the oil pushes on while extending (mm^2); NaN without a bore."""
+        return math.nan if self.bore is None else math.pi * self.bore**2 / 4.0
+
+    @property
+    def annulus_area(self) -> float:
+        """Area the oil pushes on while retracting: piston less rod (mm^2); NaN without."""
+        if self.bore is None:
+            return math.nan
+        return math.pi * (self.bore**2 - self.rod**2) / 4.0
+
+
+@dataclass(frozen=True)
+class Pump:
+    """One pump of ``flow`` L/min feeding the named ``cylinders`` (all moving at once share it)."""
+
+    flow: float
+    cylinders: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        _positive(self.flow, "pump_flow", MAX_PUMP_FLOW)
+
+    @property
+    def flow_mm3_per_s(self) -> float:
+        """The flow in mm^3/s (1 L/min = 1e6 / 60 mm^3/s)."""
+        return self.flow * LPM_TO_MM3_PER_S
+
+
 # ---- a robot's set of cylinders --------------------------------------------------------
 
 
@@ -641,6 +737,9 @@ class CylinderSet:
     robot: str
     joint_names: tuple[str, ...]
     mechanisms: tuple[Mechanism, ...]
+    #: Hydraulic data by cylinder name (only the cylinders that have some).
+    hydraulics: Mapping[str, CylinderHydraulics] = field(default_factory=dict)
+    pump: Pump | None = None
     _index: dict[str, tuple[int, int]] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -659,6 +758,23 @@ class CylinderSet:
                     raise CylinderError(f"cylinders[{m}].name", f"duplicate cylinder '{name}'")
                 index[name] = (m, k)
         object.__setattr__(self, "_index", index)
+        for name in self.hydraulics:
+            if name not in index:
+                raise CylinderError("cylinders", f"hydraulic data for unknown cylinder '{name}'")
+        if self.pump is not None:
+            for k, name in enumerate(self.pump.cylinders):
+                h = self.hydraulics.get(name)
+                if name not in index:
+                    raise CylinderError(("pump_cylinders", k), f"robot '{self.robot}' has no "
+                                        f"cylinder '{name}'; it has {', '.join(index)}")
+                if h is None or not h.has_areas:
+                    raise CylinderError(("pump_cylinders", k), f"cylinder '{name}' has no bore "
+                                        "and rod: the pump cannot know its flow")
+            if len(set(self.pump.cylinders)) != len(self.pump.cylinders):
+                raise CylinderError("pump_cylinders", "each cylinder at most once")
+            if not self.pump.cylinders:
+                raise CylinderError("pump_flow", "the pump needs cylinders with bore and rod "
+                                    "to feed")
 
     @property
     def dof(self) -> int:
@@ -829,11 +945,17 @@ class CylinderSet:
         """Read ``model.extras["cylinders"]``; ``CylinderError`` names the field at fault."""
         data = model.extras.get("cylinders")
         if data is None:
+            for key in ("pump_flow", "pump_cylinders"):
+                if key in model.extras:
+                    raise CylinderError(key, "a pump needs the robot's cylinders to feed")
             raise CylinderError("cylinders", f"robot '{model.id}' has no cylinders")
         if not isinstance(data, list) or not data:
             raise CylinderError("cylinders", "must be a non-empty list of mechanisms")
         mechanisms = tuple(_mechanism(model, d, f"cylinders[{i}]") for i, d in enumerate(data))
-        return cls(model.id, tuple(j.name for j in model.joints), mechanisms)
+        hydraulics = {h.name: h for i, d in enumerate(data)
+                      for h in _hydraulics(d, f"cylinders[{i}]")}
+        return cls(model.id, tuple(j.name for j in model.joints), mechanisms, hydraulics,
+                   _pump(model.extras, hydraulics))
 
 
 _KINDS = {"triangle", "four_bar", "swing_pair"}
@@ -842,6 +964,35 @@ _FOUR_BAR_KEYS = {
     "l_hn", "l_kh", "l_mn", "l_km", "l_ng", "psi0", "sign", "angle_gnh", "min_length",
     "max_length",
 }
+
+
+def _hydraulics(data: dict, path: str) -> list[CylinderHydraulics]:
+    """The hydraulic fields of a mechanism's cylinders (one, or a pair's two)."""
+    sides = [(data, path)] if data.get("kind") != "swing_pair" else \
+        [(data[side], f"{path}.{side}") for side in ("left", "right")]
+    out = []
+    for d, sub in sides:
+        values = {k: d[k] for k in HYDRAULIC_KEYS if k in d}
+        if values:
+            out.append(_build(CylinderHydraulics, sub, name=d["name"], **values))
+    return out
+
+
+def _pump(extras: Mapping[str, Any], hydraulics: Mapping[str, CylinderHydraulics]
+          ) -> Pump | None:
+    """The robot's pump from ``pump_flow`` (L/min) and ``pump_cylinders`` (default: every
+    cylinder with bore and rod); None without ``pump_flow``."""
+    flow = extras.get("pump_flow")
+    names = extras.get("pump_cylinders")
+    if flow is None:
+        if names is not None:
+            raise CylinderError("pump_flow", "is required with pump_cylinders")
+        return None
+    if names is None:
+        names = [n for n, h in hydraulics.items() if h.has_areas]
+    elif not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise CylinderError("pump_cylinders", "must be a list of cylinder names")
+    return Pump(flow, tuple(names))
 
 
 def _joint_index(model: RobotModel, value: Any, path: str) -> int:
@@ -896,18 +1047,18 @@ def _mechanism(model: RobotModel, data: Any, path: str) -> Mechanism:
     name = _name(data, path)
     joint = _joint_index(model, data.get("joint"), f"{path}.joint")
     lim = {"lower": model.joints[joint].lower, "upper": model.joints[joint].upper}
-    head = {"name", "kind", "joint", "note"}
+    head = {"name", "kind", "joint", "note", *HYDRAULIC_KEYS}
     if kind == "triangle":
         values = _fields(data, _TRIANGLE_KEYS, path, head)
         return _build(TriangleCylinder, path, name=name, joint=joint, **values, **lim)
     if kind == "four_bar":
         values = _fields(data, _FOUR_BAR_KEYS, path, head)
         return _build(FourBarCylinder, path, name=name, joint=joint, **values, **lim)
-    _fields(data, {"left", "right"}, path, head)
+    _fields(data, {"left", "right"}, path, {"name", "kind", "joint", "note"})
     sides = {}
     for side in ("left", "right"):
         sub = f"{path}.{side}"
-        values = _fields(data[side], _TRIANGLE_KEYS, sub, {"name", "note"})
+        values = _fields(data[side], _TRIANGLE_KEYS, sub, {"name", "note", *HYDRAULIC_KEYS})
         sides[side] = _build(
             TriangleCylinder, sub, name=_name(data[side], sub), joint=joint, **values, **lim
         )

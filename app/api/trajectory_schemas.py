@@ -20,6 +20,9 @@ from ..fields import (
 from .schemas import Body
 
 __all__ = [
+    "DEFAULT_GRID",
+    "MAX_GRID",
+    "default_grid",
     "MAX_TRAJECTORY_SAMPLES",
     "RateLimits",
     "TrajectoryRequest",
@@ -42,12 +45,38 @@ WaypointRates = bounded_list(bounded_list(WaypointRate, 32, min_length=1), MAX_W
 Step = Annotated[float, Field(ge=1e-6, le=3600.0, description="Sampling step, s")]
 
 
+#: Grid intervals of optimal time scaling: at least DEFAULT_GRID, GRID_PER_SEGMENT per
+#: waypoint segment, at most MAX_GRID (also the most a request may ask for: a jerk-limited
+#: profile on 5,000 intervals takes about 6 s here).
+DEFAULT_GRID = 500
+GRID_PER_SEGMENT = 40
+MAX_GRID = 5_000
+
+
+def default_grid(waypoints: int) -> int:
+    """Grid intervals for a path through ``waypoints`` points."""
+    return min(max(DEFAULT_GRID, GRID_PER_SEGMENT * (waypoints - 1)), MAX_GRID)
+
+
 class RateLimits(Body):
     """Rate limits per joint (a list) or for every joint (one number); positive."""
 
     velocity: PerJoint | None = Field(None, description="rad/s or mm/s")
     acceleration: PerJoint | None = Field(None, description="rad/s² or mm/s²")
     jerk: PerJoint | None = Field(None, description="rad/s³ or mm/s³")
+    pump_flow: Rate | None = Field(
+        None, description="L/min shared by the robot's cylinders; overrides the robot's "
+        "pump_flow (needs cylinders with bore and rod)")
+
+
+TimeScaling = Annotated[
+    bool | Literal["none", "uniform", "optimal"],
+    Field(description="none (false): as planned; uniform (true): one factor per trajectory "
+          "(per segment for quintic at rest) to the shortest that meets the limits; optimal: "
+          "the path re-timed time-optimally (TOPP-RA) within the joint limits, the cylinder "
+          "speeds and the pump flow, jerk-limited when limits.jerk is given; needs "
+          "limits.acceleration"),
+]
 
 
 class TrajectoryRequest(Body):
@@ -60,19 +89,28 @@ class TrajectoryRequest(Body):
     )
     waypoints: joint_batch(MAX_WAYPOINTS) = Field(
         description=f"Joint waypoints, 2 to {MAX_WAYPOINTS}", min_length=2)
-    durations: bounded_list(Duration, MAX_WAYPOINTS - 1, min_length=1) = Field(
-        description="Duration of each segment, s (one fewer than waypoints)")
+    durations: bounded_list(Duration, MAX_WAYPOINTS - 1, min_length=1) | None = Field(
+        None, description="Duration of each segment, s (one fewer than waypoints). Needed "
+        "unless time_scaling is 'optimal' or profile is 'jerk_limited' (then it only shapes "
+        "the path; default: proportional to each segment's joint-space length)")
     dt: Step = 0.01
     robot: str | None = Field(None, max_length=64,
                               description="Check joint and speed limits of this robot")
     velocities: WaypointRates | None = Field(None, description="quintic: rates at waypoints")
     accelerations: WaypointRates | None = Field(None, description="quintic: at waypoints")
     limits: RateLimits | None = Field(None, description="Rate limits to check (and fit)")
-    time_scaling: bool = Field(
-        False,
-        description="Rescale the durations to the shortest that respect the rate limits "
-        "(robot speed limits and 'limits')",
-    )
+    time_scaling: TimeScaling = False
+    grid: int | None = Field(None, ge=10, le=MAX_GRID, description="Grid intervals along the "
+                             f"path for optimal time scaling (default {GRID_PER_SEGMENT} per "
+                             f"waypoint segment, at least {DEFAULT_GRID}, at most "
+                             f"{MAX_GRID})")
+    profile: Literal["path", "jerk_limited"] = Field(
+        "path", description="path: through the waypoints by 'method'; jerk_limited: from "
+        "the first waypoint to the second (exactly two), each joint a 7-segment S-curve within "
+        "limits.velocity (or the robot's), acceleration and jerk, all arriving together "
+        "(method, durations and time_scaling do not apply)")
+    end_velocity: bounded_list(WaypointRate, 32, min_length=1) | None = Field(
+        None, description="jerk_limited: joint velocities at the end (default rest)")
 
 
 class PlotRequest(TrajectoryRequest):
@@ -103,5 +141,11 @@ class CartesianRequest(Body):
         None, description="Tool orientation (3x3) kept along the path; default that at q0"
     )
     points: int = Field(50, ge=2, le=2000, description="Waypoints along the path")
-    duration: Duration = 10.0
+    duration: Duration = Field(10.0, description="s; with time_scaling 'optimal' the "
+                               "duration is the fastest within the limits instead")
     dt: Step = 0.05
+    limits: RateLimits | None = Field(None, description="Rate limits to check (and fit)")
+    time_scaling: TimeScaling = False
+    grid: int | None = Field(None, ge=10, le=MAX_GRID, description="Grid intervals for optimal "
+                             f"time scaling (default {GRID_PER_SEGMENT} per path point "
+                             f"interval, at least {DEFAULT_GRID}, at most {MAX_GRID})")

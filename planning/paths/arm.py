@@ -17,9 +17,14 @@ Pipeline of ``plan_arm_path``:
 4. Whole-arm clearance at every sample: each link is a capsule between consecutive
    ``fk_frames`` origins with a radius per link (default 60 mm), and must keep the scene's
    safety margin from every obstacle.
-5. A quintic B-spline joint trajectory (``bspline.quintic_bspline``) through joint waypoints
-   taken every ``waypoint_spacing`` mm of tool path, timed by arc length over ``duration``
-   s, at rest at both ends; it is re-checked (limits, whole-arm clearance) on a fine grid.
+5. A joint trajectory through joint waypoints taken every ``waypoint_spacing`` mm of tool
+   path, at rest at both ends. ``timing="optimal"`` (default): the C4 spline through them
+   (``JointPath.through``) timed as fast as the robot's limits allow (``topp``: its joint
+   speed limits, its cylinders' extension and retraction speeds and its pump flow, and the
+   ``acceleration`` and ``jerk`` limits, by default ``ARM_ACCELERATION``/``ARM_JERK``);
+   ``timing="uniform"``: the quintic B-spline (``bspline.quintic_bspline``) timed by arc
+   length over ``duration`` s. Either is re-checked (limits, whole-arm clearance) on a fine
+   grid.
 6. For robots with cylinders (pile_driver) the cylinder lengths along the path and whether
    they stay within stroke.
 
@@ -45,7 +50,10 @@ from kinematics.numbers import finite_or_none
 from ..budget import ProgressFn
 from ..status import PlanStatus
 from ..trajectories.bspline import quintic_bspline
-from ..trajectories.trajectory import Trajectory
+from ..trajectories.hydraulic import hydraulic_limits
+from ..trajectories.joint_path import JointPath
+from ..trajectories.topp import time_optimal
+from ..trajectories.trajectory import Limits, Trajectory
 from .planners import PathResult, plan_path
 from .scene import Capsule, Scene, segment_point_distance
 
@@ -55,6 +63,13 @@ __all__ = ["ArmPathResult", "plan_arm_path", "link_capsules", "arm_clearance"]
 DEFAULT_LINK_RADIUS = 60.0
 #: Null-space gain towards mid-range while following the path (per IK iteration).
 CENTRING = 0.02
+#: Joint acceleration limits of optimal arm-path timing when none are given: rad/s² for
+#: revolute joints, mm/s² for prismatic ones (a heavy hydraulic arm reaches 1 rad/s in 1 s).
+ARM_ACCELERATION = (1.0, 500.0)
+#: Joint jerk limits likewise (rad/s³, mm/s³): the acceleration builds up in 0.2 s.
+ARM_JERK = (5.0, 2500.0)
+#: Arm-path timings: as fast as the limits allow, or arc length over a given duration.
+ARM_TIMINGS = ("optimal", "uniform")
 
 
 @dataclass(frozen=True)
@@ -225,6 +240,9 @@ def plan_arm_path(
     duration: float = 10.0,
     q_start=None,
     keep_out_radius: float | None = None,
+    timing: str = "optimal",
+    acceleration=None,
+    jerk=None,
 ) -> ArmPathResult:
     """Plan the tool of ``model`` from ``start`` to ``goal`` (mm, world frame) in ``scene``.
 
@@ -233,8 +251,11 @@ def plan_arm_path(
     ``duration``: s of the joint trajectory; ``clearance_slack``: mm the tool path keeps
     on top of margin and link radius; ``q_start``: joints to start from (default:
     position IK); ``keep_out_radius``: mm, keeps the tool path that far from the base's z
-    axis (``base_keep_out``; the arm itself is checked against the scene only). Invalid
-    input raises ``FieldError`` naming the field; unreachable endpoints, a tool path the arm
+    axis (``base_keep_out``; the arm itself is checked against the scene only);
+    ``timing``: 'optimal' (the fastest within the robot's limits and ``acceleration``,
+    ``jerk``: one number or one per joint, defaults ``ARM_ACCELERATION``, ``ARM_JERK``;
+    ``duration`` is then not used) or 'uniform' (``duration`` s). Invalid input raises
+    ``FieldError`` naming the field; unreachable endpoints, a tool path the arm
     cannot follow and arm collisions give a failed ``status``.
 
     The steps, as in the module docstring: the endpoints' joints (``_endpoint_joints``),
@@ -245,6 +266,9 @@ def plan_arm_path(
     radii = _checked_options(model, link_radius, spacing=spacing,
                              waypoint_spacing=waypoint_spacing,
                              clearance_slack=clearance_slack, duration=duration)
+    if timing not in ARM_TIMINGS:
+        raise FieldError("timing", f"timing must be one of {', '.join(ARM_TIMINGS)}")
+    rates = _arm_limits(model, acceleration, jerk) if timing == "optimal" else None
     start = scene.check_endpoint(start, "start")
     goal = scene.check_endpoint(goal, "goal")
     report = progress or (lambda f: None)
@@ -264,6 +288,8 @@ def plan_arm_path(
     except _Failed as failed:
         return failed.result
     traj, waypoints = _joint_trajectory(samples, waypoint_spacing, duration)
+    if rates is not None:
+        traj = _optimal_timing(model, samples.q[waypoints], rates, traj)
     check = _check_trajectory(model, scene, radii, tool, samples, traj)
     report(1.0)
     return _result(tool, samples, traj, waypoints, check, arm_min, q_goal,
@@ -380,6 +406,35 @@ def _joint_trajectory(samples: _Samples, waypoint_spacing: float, duration: floa
     if np.any(durations <= 0):
         durations = np.full(len(idx) - 1, duration / (len(idx) - 1))
     return quintic_bspline(samples.q[idx], durations), idx
+
+
+def _arm_limits(model: RobotModel, acceleration, jerk) -> Limits:
+    """The rate limits of optimal arm-path timing: the robot's joint speed limits and the
+    given (or default) accelerations and jerks; ``FieldError`` naming the one at fault."""
+    out = {}
+    for name, value, default in (("acceleration", acceleration, ARM_ACCELERATION),
+                                 ("jerk", jerk, ARM_JERK)):
+        if value is None:
+            arr = np.where(model.revolute, default[0], default[1])
+        else:
+            arr = np.asarray(value, dtype=float)
+            arr = np.broadcast_to(arr, (model.dof,)).copy() if arr.ndim == 0 else arr
+        if arr.shape != (model.dof,) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+            raise FieldError(name, f"{name} must be one positive number or {model.dof}")
+        out[name] = arr
+    return Limits(velocity=np.asarray(model.velocity_limits), **out)
+
+
+def _optimal_timing(model: RobotModel, waypoints: np.ndarray, limits: Limits,
+                    fallback: Trajectory) -> Trajectory:
+    """The spline through ``waypoints`` timed as fast as ``limits`` and the robot's
+    hydraulics allow (jerk-limited); ``fallback`` when the waypoints do not move."""
+    try:
+        path = JointPath.through(waypoints)
+    except FieldError:  # start and goal coincide: nothing to time
+        return fallback
+    res = time_optimal(path, limits, hydraulic_limits(model))
+    return res.trajectory if res.success else fallback
 
 
 def _check_trajectory(model: RobotModel, scene: Scene, radii: np.ndarray, tool: PathResult,

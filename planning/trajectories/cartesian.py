@@ -20,7 +20,7 @@ from kinematics.model import RobotModel
 from .polynomials import smooth_spline
 from .trajectory import Trajectory
 
-__all__ = ["line_points", "ellipse_points", "CartesianPlan", "follow_path"]
+__all__ = ["line_points", "ellipse_points", "CartesianPlan", "follow_path", "path_deviation"]
 
 #: Samples per waypoint interval used to measure the deviation between waypoints.
 DEVIATION_OVERSAMPLING = 20
@@ -137,8 +137,16 @@ def follow_path(
     seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
     durations = duration * seg / seg.sum()
     traj = smooth_spline(q, durations)
-    t = np.linspace(0.0, traj.duration, (n - 1) * DEVIATION_OVERSAMPLING + 1)
-    tool = fk(model, traj.evaluate(t))[:, :3, 3]
-    dev = _distance_to_polyline(tool, points)
-    return CartesianPlan(points, q, traj, np.array(errs), float(dev.max()), float(dev.mean()),
-                         failed)
+    dev_max, dev_mean = path_deviation(model, traj, points)
+    return CartesianPlan(points, q, traj, np.array(errs), dev_max, dev_mean, failed)
+
+
+def path_deviation(model: RobotModel, traj: Trajectory, points: np.ndarray
+                   ) -> tuple[float, float]:
+    """Largest and mean distance (mm) of the tool along ``traj`` from the polyline through
+    ``points (n, 3)``, sampled ``DEVIATION_OVERSAMPLING`` times per point interval (e.g.
+    after the joint path was re-timed)."""
+    t = np.linspace(traj.breaks[0], traj.breaks[-1],
+                    (len(points) - 1) * DEVIATION_OVERSAMPLING + 1)
+    dev = _distance_to_polyline(fk(model, traj.evaluate(t))[:, :3, 3], points)
+    return float(dev.max()), float(dev.mean())

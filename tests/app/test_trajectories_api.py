@@ -134,3 +134,160 @@ def test_cartesian_errors(client):
     r = client.post("/trajectories/cartesian", json={
         "robot": "glt_palletizer", "path": {"kind": "line", "end": [-4e245, 0, 0]}})
     assert r.status_code == 422 and "end" in r.json()["detail"][0]["loc"]
+
+
+# ---- time scaling: uniform and optimal, hydraulics, jerk-limited moves ---------------------
+GLT_LIMITS = {"velocity": 1.0, "acceleration": 2.0}
+#: pile_driver: boom and stick extend together (the pump binds) / the boom comes down alone
+#: (its cylinder's retraction speed binds).
+PUMP_MOVE = [[0.0, 0.1, -0.9, -0.5, 0.0, 0.0], [0.0, 0.9, -0.1, -0.5, 0.0, 0.0]]
+RETRACT_MOVE = [[0.0, 0.9, -0.5, -0.5, 0.0, 0.0], [0.0, 0.1, -0.5, -0.5, 0.0, 0.0]]
+
+
+def _png_size(content: bytes) -> tuple[int, int]:
+    """Width and height from a PNG's IHDR chunk."""
+    return int.from_bytes(content[16:20], "big"), int.from_bytes(content[20:24], "big")
+
+
+def test_optimal_is_faster_than_uniform_and_binds_throughout(client):
+    base = body(method="smooth", robot="glt_palletizer", limits=GLT_LIMITS)
+    uniform = client.post("/trajectories", json=base | {"time_scaling": "uniform"}).json()
+    legacy = client.post("/trajectories", json=base | {"time_scaling": True}).json()
+    optimal = client.post("/trajectories", json=base | {"time_scaling": "optimal"}).json()
+    assert legacy["duration"] == uniform["duration"]  # true is 'uniform'
+    assert uniform["timing"]["time_scaling"] == "uniform"
+    assert optimal["timing"]["time_scaling"] == "optimal"
+    assert optimal["timing"]["optimal"]["grid"] >= 500
+    assert uniform["limits"]["ok"] and optimal["limits"]["ok"]
+    assert optimal["duration"] < 0.8 * uniform["duration"]
+    np.testing.assert_allclose(np.asarray(optimal["q"])[[0, -1]], [GLT_ABC[0], GLT_ABC[2]],
+                               atol=1e-9)
+    # Uniform: a limit binds around one instant; optimal: at almost every sample.
+    busy = [bool(b) for b in optimal["binding"]]
+    assert sum(busy) >= 0.95 * len(busy)
+    assert sum(bool(b) for b in uniform["binding"]) < 0.2 * len(uniform["binding"])
+    names = {n for b in optimal["binding"] for n in b}
+    assert names <= {f"{j} {k}" for j in ("waist", "shoulder", "elbow", "wrist_roll",
+                                          "wrist_pitch", "wrist_yaw")
+                     for k in ("velocity", "acceleration")}
+    assert optimal["hydraulics"] is None  # no cylinders
+    none = client.post("/trajectories", json=base).json()
+    assert none["timing"]["time_scaling"] == "none" and none["duration"] == pytest.approx(4.0)
+
+
+def test_optimal_needs_no_durations_and_jerk_keeps_the_motion_smooth(client):
+    wp = {"method": "smooth", "waypoints": GLT_ABC, "robot": "glt_palletizer", "dt": 0.01}
+    plain = client.post("/trajectories", json=wp | {"time_scaling": "optimal",
+                                                     "limits": GLT_LIMITS}).json()
+    jerk = client.post("/trajectories", json=wp | {
+        "time_scaling": "optimal", "limits": GLT_LIMITS | {"jerk": 10.0}}).json()
+    assert plain["limits"]["ok"] and jerk["limits"]["ok"]
+    assert max(jerk["peaks"]["jerk"]) <= 10.0 * (1 + 1e-9)
+    assert jerk["continuity"]["acceleration"] < 1e-6
+    assert plain["duration"] < jerk["duration"] < 1.5 * plain["duration"]
+
+
+@pytest.mark.parametrize(("move", "binds"), [(PUMP_MOVE, "pump"),
+                                             (RETRACT_MOVE, "boom retraction")])
+def test_pile_driver_reports_what_binds_and_its_peak_speeds(client, move, binds):
+    out = client.post("/trajectories", json={
+        "waypoints": move, "robot": "pile_driver", "time_scaling": "optimal", "dt": 0.005,
+        "limits": {"acceleration": 5.0}}).json()
+    assert out["limits"]["ok"], out["limits"]
+    n = len(out["binding"])
+    assert all(binds in b for b in out["binding"][int(0.4 * n): int(0.6 * n)])
+    hyd = out["hydraulics"]
+    boom = hyd["cylinders"]["boom"]
+    assert boom["max_extension_speed"] == 150.0 and boom["max_retraction_speed"] == 220.0
+    assert boom["peak_extension_speed"] <= 150.0 * (1 + 1e-6)
+    assert boom["peak_retraction_speed"] <= 220.0 * (1 + 1e-6)
+    assert hyd["pump"]["pump_flow"] == 40.0 and hyd["pump"]["peak_flow"] <= 40.0 * (1 + 1e-6)
+    if binds == "pump":
+        assert hyd["pump"]["peak_flow"] == pytest.approx(40.0, rel=1e-3)
+    else:
+        assert boom["peak_retraction_speed"] == pytest.approx(220.0, rel=1e-3)
+
+
+def test_a_smaller_pump_slows_the_move_and_uniform_keeps_the_hydraulics_too(client):
+    base = {"waypoints": PUMP_MOVE, "robot": "pile_driver", "dt": 0.01,
+            "time_scaling": "optimal"}
+    big = client.post("/trajectories", json=base | {"limits": {"acceleration": 5.0}}).json()
+    small = client.post("/trajectories", json=base | {
+        "limits": {"acceleration": 5.0, "pump_flow": 20.0}}).json()
+    assert small["duration"] > 1.5 * big["duration"]
+    assert small["hydraulics"]["pump"]["peak_flow"] <= 20.0 * (1 + 1e-6)
+    uniform = client.post("/trajectories", json=base | {
+        "time_scaling": "uniform", "durations": [1.0], "method": "quintic"}).json()
+    assert uniform["limits"]["ok"] and uniform["duration"] > big["duration"]
+    assert uniform["hydraulics"]["pump"]["peak_flow"] == pytest.approx(40.0, rel=2e-3)
+    # Without any scaling an overly fast move is reported: the pump and a cylinder.
+    fast = client.post("/trajectories", json=base | {
+        "time_scaling": "none", "durations": [0.3], "method": "quintic"}).json()
+    names = {(v["name"], v["quantity"]) for v in fast["limits"]["violations"]}
+    assert ("pump", "flow") in names and ("boom", "extension") in names
+
+
+INFEASIBLE = [
+    ({"limits": {"velocity": 0}}, ["body", "limits", "velocity"]),
+    ({"limits": {"acceleration": 1.0, "pump_flow": 0}}, ["body", "limits", "pump_flow"]),
+    ({}, ["body", "limits", "acceleration"]),
+    ({"time_scaling": "uniform", "limits": {"acceleration": 1.0}}, ["body", "durations"]),
+    ({"time_scaling": "fastest"}, ["body", "time_scaling"]),
+    ({"grid": 3, "limits": {"acceleration": 1.0}}, ["body", "grid"]),
+    ({"robot": "glt_palletizer", "limits": {"acceleration": 1.0, "pump_flow": 10.0}},
+     ["body", "limits", "pump_flow"]),
+]
+
+
+def test_infeasible_limits_are_422_naming_the_field(client):
+    # One client for all cases: each new app starts its own worker processes.
+    for change, loc in INFEASIBLE:
+        r = client.post("/trajectories", json={"waypoints": PUMP_MOVE, "robot": "pile_driver",
+                                               "time_scaling": "optimal"} | change)
+        assert r.status_code == 422, (change, r.text)
+        assert any(e["loc"][:len(loc)] == loc for e in r.json()["detail"]), r.json()
+
+
+def test_jerk_limited_point_to_point(client):
+    lim = {"velocity": 2.0, "acceleration": 1.0, "jerk": 2.0}
+    out = client.post("/trajectories", json={
+        "waypoints": [[0.0], [10.0]], "profile": "jerk_limited", "limits": lim}).json()
+    assert out["duration"] == pytest.approx(10 / 2 + 2 / 1 + 1 / 2)  # d/V + V/A + A/J
+    assert out["timing"]["profile"] == "jerk_limited" and out["limits"]["ok"]
+    two = client.post("/trajectories", json={
+        "waypoints": [[0.0, 0.0], [10.0, 1.0]], "profile": "jerk_limited", "limits": lim,
+        "end_velocity": [0.5, 0.1]}).json()
+    assert two["limits"]["ok"] and two["timing"]["limiting_joint"] == "j1"
+    np.testing.assert_allclose(two["qd"][-1], [0.5, 0.1], atol=1e-6)
+    np.testing.assert_allclose(two["q"][-1], [10.0, 1.0], atol=1e-9)
+    for change, loc in (({"waypoints": [[0.0], [1.0], [2.0]]}, "waypoints"),
+                        ({"limits": {"velocity": 1.0, "acceleration": 1.0}}, "jerk"),
+                        ({"end_velocity": [5.0]}, "end_velocity")):
+        r = client.post("/trajectories", json={"waypoints": [[0.0], [10.0]],
+                                               "profile": "jerk_limited", "limits": lim} | change)
+        assert r.status_code == 422 and any(loc in e["loc"] for e in r.json()["detail"]), r.text
+
+
+def test_plot_adds_cylinder_and_pump_panels_for_hydraulic_arms(client):
+    glt = client.post("/trajectories/plot", json=body(method="sextic", robot="glt_palletizer"))
+    pile = client.post("/trajectories/plot", json={
+        "waypoints": PUMP_MOVE, "robot": "pile_driver", "time_scaling": "optimal",
+        "limits": {"acceleration": 5.0}})
+    assert glt.status_code == 200 and pile.status_code == 200, pile.text
+    w_glt, h_glt = _png_size(glt.content)
+    w_pile, h_pile = _png_size(pile.content)
+    assert w_glt == w_pile and h_pile - h_glt == 400  # two more panels of 2 in at 100 dpi
+
+
+def test_cartesian_optimal_is_faster_and_still_on_the_line(client):
+    req = {"robot": "glt_palletizer", "path": {"kind": "line", "end": [1000, 200, 900]},
+           "points": 30, "duration": 5.0, "limits": GLT_LIMITS}
+    slow = client.post("/trajectories/cartesian", json=req).json()
+    fast = client.post("/trajectories/cartesian", json=req | {"time_scaling": "optimal"}).json()
+    assert fast["limits"]["ok"] and fast["timing"]["time_scaling"] == "optimal"
+    assert fast["duration"] < slow["duration"]
+    assert fast["tracking"]["max_deviation"] < 5.0
+    r = client.post("/trajectories/cartesian", json=req | {"time_scaling": "optimal",
+                                                          "limits": {"velocity": 1.0}})
+    assert r.status_code == 422 and ["body", "limits", "acceleration"] == \
+        r.json()["detail"][0]["loc"]

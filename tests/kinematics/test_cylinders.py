@@ -424,3 +424,77 @@ def test_bad_cylinder_geometry_names_the_field(cls, base, change, field):
     with pytest.raises(CylinderError) as err:
         cls(**{**base, **change})
     assert err.value.field == field
+
+
+# ---------------------------------------------------------------------------------------
+# Hydraulics: speed limits, bore and rod, the pump
+
+
+def test_pile_driver_hydraulics_are_as_documented():
+    h = CYL.hydraulics
+    assert set(h) == set(CYL.names)
+    assert (h["boom"].bore, h["boom"].rod) == (63.0, 36.0)
+    assert (h["boom"].max_extension_speed, h["boom"].max_retraction_speed) == (150.0, 220.0)
+    assert h["boom"].piston_area == pytest.approx(math.pi * 63.0**2 / 4)
+    assert h["boom"].annulus_area == pytest.approx(math.pi * (63.0**2 - 36.0**2) / 4)
+    assert CYL.pump.flow == 40.0 and CYL.pump.cylinders == CYL.names
+    assert CYL.pump.flow_mm3_per_s == pytest.approx(40.0 * 1e6 / 60)
+    # Each speed limit is its valve section's flow over the area, within rounding (5 %).
+    for name, rated in (("boom", 28), ("stick", 22), ("four_bar", 14), ("swing_left", 12)):
+        c = h[name]
+        for area, speed in ((c.piston_area, c.max_extension_speed),
+                            (c.annulus_area, c.max_retraction_speed)):
+            assert area * speed * 60 / 1e6 == pytest.approx(rated, rel=0.05), name
+
+
+def _with_hydraulics(edit=None, **model_keys) -> RobotModel:
+    """The pile driver with its cylinders edited and model keys set (None: removed)."""
+    data = _pile_data()
+    if edit is not None:
+        edit(data["cylinders"])
+    data.update(model_keys)
+    return RobotModel.from_dict({k: v for k, v in data.items() if v is not None})
+
+
+@pytest.mark.parametrize(
+    ("edit", "model_keys", "field"),
+    [
+        (lambda s: s[0].update(rod=63.0), {}, "cylinders[0].rod"),
+        (lambda s: s[0].update(rod=80.0), {}, "cylinders[0].rod"),
+        (lambda s: s[1].pop("rod"), {}, "cylinders[1].rod"),
+        (lambda s: s[1].pop("bore"), {}, "cylinders[1].bore"),
+        (lambda s: s[0].update(max_extension_speed=0.0), {}, "cylinders[0].max_extension_speed"),
+        (lambda s: s[2].update(max_retraction_speed=-5.0), {},
+         "cylinders[2].max_retraction_speed"),
+        (lambda s: s[3]["left"].update(bore="wide"), {}, "cylinders[3].left.bore"),
+        (None, {"pump_flow": 0.0}, "pump_flow"),
+        (None, {"pump_flow": math.inf}, "pump_flow"),
+        (None, {"pump_cylinders": ["boom", "dipper"]}, "pump_cylinders.1"),
+        (None, {"pump_flow": None, "pump_cylinders": ["boom"]}, "pump_flow"),
+        (lambda s: [c.pop(k, None) for c in s[:1] for k in ("bore", "rod")],
+         {"pump_cylinders": ["boom"]}, "pump_cylinders.0"),
+    ],
+)
+def test_bad_hydraulics_name_the_field(edit, model_keys, field):
+    model = _with_hydraulics(edit, **model_keys)
+    with pytest.raises(CylinderError) as err:
+        CylinderSet.from_model(model)
+    assert err.value.field == field
+
+
+def test_hydraulics_are_optional_and_json_without_them_stays_valid():
+    def strip(spec):
+        for mech in spec:
+            for c in (mech["left"], mech["right"]) if mech["kind"] == "swing_pair" else (mech,):
+                for k in ("bore", "rod", "max_extension_speed", "max_retraction_speed"):
+                    c.pop(k)
+    data = _pile_data()
+    strip(data["cylinders"])
+    data.pop("pump_flow")
+    cs = CylinderSet.from_model(RobotModel.from_dict(data))
+    assert cs.hydraulics == {} and cs.pump is None
+    # Only speed limits, no areas: fine without a pump.
+    data["cylinders"][0]["max_extension_speed"] = 100.0
+    cs = CylinderSet.from_model(RobotModel.from_dict(data))
+    assert cs.hydraulics["boom"].max_extension_speed == 100.0
+    assert not cs.hydraulics["boom"].has_areas

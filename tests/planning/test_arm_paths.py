@@ -82,7 +82,7 @@ def test_the_whole_arm_keeps_clear(model, scene, planned):
 
 def test_joint_trajectory_is_a_rest_to_rest_bspline(model, scene, planned):
     traj = planned.trajectory
-    assert traj.method == "bspline5" and traj.duration == pytest.approx(10.0)
+    assert traj.method == "optimal"  # timed as fast as the robot's limits allow
     np.testing.assert_allclose(traj.evaluate(np.array([0.0, traj.duration])),
                                planned.q[[0, -1]], atol=1e-9)
     for derivative in (1, 2):
