@@ -21,6 +21,8 @@ COPY kinematics/ ./kinematics/
 COPY planning/ ./planning/
 COPY web/ ./web/
 RUN pip install --no-cache-dir ".[dask]"
+# The compiled kinematics kernels go into the image, so no container compiles them again.
+RUN cd / && python -c "from kinematics.fast import warm_up; warm_up()"
 
 # Run from the installed package (as the Dask workers do), not from the source tree.
 WORKDIR /home/kinoplan

@@ -71,6 +71,9 @@ def _warm() -> None:
 
     for name in PRELOAD:
         importlib.import_module(name)
+    from kinematics.fast import start_warm_up
+
+    start_warm_up()
 
 
 class ComputePool:

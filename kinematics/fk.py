@@ -8,6 +8,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from .fast import FK_BLOCK, chain_of, fk_rows, kernels
 from .model import RobotModel
 from .transforms import rot_x, trans
 
@@ -191,16 +192,38 @@ def fk(model: RobotModel, q) -> np.ndarray:
     """Tool poses ``T_world_tool = base · chain(q) · tool`` in mm (docs/conventions.md).
 
     ``q: (*, dof) -> (*, 4, 4)``: any leading batch shape, e.g. ``(dof,) -> (4, 4)`` or
-    ``(N, dof) -> (N, 4, 4)``.
+    ``(N, dof) -> (N, 4, 4)``. Runs on the compiled kernels when they are available
+    (``kinematics.fast``), else on numpy, in blocks of ``FK_BLOCK`` configurations.
     """
+    K = kernels()
+    if K is not None and type(q) is np.ndarray and q.shape == (model.dof,) and \
+            q.dtype == np.float64 and q.flags.c_contiguous and q.flags.writeable:
+        # One configuration as the kernel takes it: no normalisation to pay for.
+        ch = chain_of(model)
+        T = np.empty((4, 4))
+        K.fk_pose(ch.C, ch.prismatic, ch.offset, q, T)
+        return T
     q2, lead = batch_of(model, q)
+    if K is not None:
+        return fk_rows(K, model, q2).reshape(lead + (4, 4))
+    n = q2.shape[0]
+    if n <= FK_BLOCK:
+        return _fk_numpy(model, q2).reshape(lead + (4, 4))
+    # Blocks small enough for the intermediate arrays to stay in cache: the time per
+    # configuration stays flat with the batch size, and the memory bounded.
+    T = np.empty((n, 4, 4))
+    for start in range(0, n, FK_BLOCK):
+        T[start:start + FK_BLOCK] = _fk_numpy(model, q2[start:start + FK_BLOCK])
+    return T.reshape(lead + (4, 4))
+
+
+def _fk_numpy(model: RobotModel, q2: np.ndarray) -> np.ndarray:
+    """``fk`` of ``q2 (N, dof)`` by the batched numpy code (no compiled kernels)."""
     if model.convention == "poe":
         T, _ = _chain(model, q2, keep=False)
-        T = _right_multiply(T, model.home @ model.tool)
-    else:
-        cols, _ = _dh_columns(model, q2, keep=False)
-        T = _columns_to_poses(_times_constant(cols, model.tool), q2.shape[0])
-    return T.reshape(lead + (4, 4))
+        return _right_multiply(T, model.home @ model.tool)
+    cols, _ = _dh_columns(model, q2, keep=False)
+    return _columns_to_poses(_times_constant(cols, model.tool), q2.shape[0])
 
 
 def fk_frames(model: RobotModel, q) -> np.ndarray:

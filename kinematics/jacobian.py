@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .fast import chain_of, jacobian_rows, kernels
 from .fk import batch_of, joint_axes
 from .model import RobotModel
 
@@ -17,9 +18,21 @@ def jacobian_and_pose(model: RobotModel, q) -> tuple[np.ndarray, np.ndarray]:
 
     Rows are (vx, vy, vz) of the tool point in mm per joint unit, then (wx, wy, wz) in rad
     per joint unit, all in the world frame in which ``fk`` reports ``T_world_tool``
-    (docs/conventions.md).
+    (docs/conventions.md). Runs on the compiled kernels when they are available
+    (``kinematics.fast``), else on numpy.
     """
+    K = kernels()
+    if K is not None and type(q) is np.ndarray and q.shape == (model.dof,) and \
+            q.dtype == np.float64 and q.flags.c_contiguous and q.flags.writeable:
+        # One configuration as the kernel takes it: no normalisation to pay for.
+        ch = chain_of(model)
+        J, T = np.empty((6, model.dof)), np.empty((4, 4))
+        K.jacobian_pose(ch.C, ch.prismatic, ch.offset, q, J, T)
+        return J, T
     q2, lead = batch_of(model, q)
+    if K is not None:
+        J, T_tool = jacobian_rows(K, model, q2)
+        return J.reshape(lead + (6, model.dof)), T_tool.reshape(lead + (4, 4))
     axes, points, T_tool = joint_axes(model, q2)
     p_tool = T_tool[:, None, :3, 3]
     rev = model.revolute[None, :, None]

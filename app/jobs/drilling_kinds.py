@@ -11,6 +11,11 @@ their bounded models (``planner_params``): every knob capped, 422 naming it.
 ``multiarm``'s holes are allocated to the arms once per process, by the params' own check
 (``MultiarmParams.allocation()``), with the params' ``balance`` and ``counts``: what the check
 accepts is exactly what the run plans.
+
+Importing this module readies the compiled sequencing search (``oropt.warm_up``: numba's
+cache loaded in about 0.2 s, or the search compiled, some 15-25 s, the first time on a
+machine), so no job pays for it: the local job backend's workers fork from a server that
+imported this module.
 """
 
 from __future__ import annotations
@@ -34,7 +39,7 @@ from planning.registry import algorithm_names
 
 from ..fields import Point3 as Vec3
 from ..fields import StrictModel
-from .kinds import MAX_SEED, XYZ, JobKind, Params, Progress, Result, register
+from .kinds import MAX_SEED, XYZ, JobKind, Params, Progress, Result, absent_when_none, register
 from .planner_params import (
     MOVE_PLANNER_KNOBS,
     SEQUENCER_KNOBS,
@@ -44,7 +49,18 @@ from .planner_params import (
 )
 
 __all__ = ["SequenceParams", "SequenceResult", "MultiarmParams", "MultiarmResult",
-           "run_sequence", "run_multiarm"]
+           "run_sequence", "run_multiarm", "SEQUENCER_READY_S"]
+
+
+def _ready_sequencer() -> float:
+    """Compile or load the sequencing search once per process; seconds it took."""
+    from planning.sequencing.oropt import warm_up
+
+    return warm_up()
+
+
+#: Seconds this process spent readying the compiled sequencing search at import.
+SEQUENCER_READY_S = _ready_sequencer()
 
 #: Most holes one job takes (sequence) / one face (multiarm).
 MAX_HOLES = 2000
@@ -53,6 +69,11 @@ MAX_FACE_HOLES = 600
 #: families of ``planning.registry``.
 Algorithm = Literal[algorithm_names("sequencer")]  # type: ignore[valid-type]
 Planner = Literal[algorithm_names("move_planner")]  # type: ignore[valid-type]
+#: What a drilling order minimises (``planning.drilling.boom_time.COSTS``).
+Cost = Literal["distance", "time"]
+COST_DESCRIPTION = ("What the order minimises: 'distance' (tool path, mm) or 'time' (the "
+                    "boom's travel time between holes in joint space, each hole's IK branch "
+                    "chosen with the order)")
 
 #: JSON schemas of the free-form algorithm parameters: one bounded model per algorithm.
 SequencerKnobs = Annotated[dict[str, Any] | None, WithJsonSchema(knobs_schema(
@@ -68,6 +89,14 @@ def _sequencer_params(v, algorithm, prefix: str = "params"):
     return sequencer_knobs(algorithm, v, prefix)
 
 
+def _check_rig(v: str) -> str:
+    from kinematics.rigs import BUILTIN_RIG_IDS
+
+    if v not in BUILTIN_RIG_IDS:
+        raise ValueError(f"unknown rig {v!r}; built-in: {', '.join(BUILTIN_RIG_IDS)}")
+    return v
+
+
 # ---- sequence --------------------------------------------------------------------------------
 class SequenceParams(Params):
     holes: list[Vec3] = Field(min_length=2, max_length=MAX_HOLES,
@@ -77,6 +106,10 @@ class SequenceParams(Params):
     algorithm: Algorithm = "auto"
     seed: int = Field(0, ge=0, le=MAX_SEED)
     params: SequencerKnobs = None
+    cost: Cost = Field("distance", description=COST_DESCRIPTION)
+    rig: str = Field("tunnel_jumbo", description="Built-in rig of the drilling arm (cost "
+                     "'time'); holes and start in its frame")
+    arm: str = Field("middle", description="The rig's arm that drills (cost 'time')")
 
     @field_validator("holes")
     @classmethod
@@ -90,6 +123,38 @@ class SequenceParams(Params):
     @classmethod
     def _params(cls, v, info: ValidationInfo):
         return _sequencer_params(v, info.data.get("algorithm"))
+
+    @field_validator("rig")
+    @classmethod
+    def _rig(cls, v):
+        return _check_rig(v)
+
+    @model_validator(mode="after")
+    def _arm_reaches(self):
+        """With cost 'time': the arm exists and reaches every hole (and the start) drilling
+        perpendicular to the face in its default posture (roll 0)."""
+        if self.cost != "time":
+            return self
+        from kinematics.drilling import drill_ik
+        from kinematics.rigs import builtin_rig
+
+        rig = builtin_rig(self.rig)
+        if self.arm not in rig.arms:
+            raise _error_at("arm", ValueError(f"arm: rig {self.rig!r} has no arm "
+                                              f"{self.arm!r} (arms: {', '.join(rig.arms)})"))
+        model = rig.arms[self.arm]
+        for k, r in enumerate(drill_ik(model, self.holes)):
+            if not r.success:
+                raise _error_at(("holes", k), ValueError(
+                    f"holes[{k}]: out of reach of the {self.arm} arm: "
+                    f"{r.message.split(': ', 1)[-1]}"))
+        if self.start is not None:
+            r = drill_ik(model, self.start)[0]
+            if not r.success:
+                raise _error_at("start", ValueError(
+                    f"start: the {self.arm} arm cannot drill there: "
+                    f"{r.message.split(': ', 1)[-1]}"))
+        return self
 
 
 class SequenceResult(Result):
@@ -106,10 +171,28 @@ class SequenceResult(Result):
     evaluations: int
     message: str
     seed: int
+    cost: Cost = Field("distance", description="What the order minimises")
+    boom_time_s: float | None = absent_when_none(
+        "Cost 'time': the boom's travel time along this order, s")
+    boom_time_distance_order_s: float | None = absent_when_none(
+        "Cost 'time': the boom's travel time along the shortest-path order (each hole's "
+        "branch chosen for it), s")
+    boom_time_saved_s: float | None = absent_when_none(
+        "Cost 'time': boom_time_distance_order_s - boom_time_s")
+    distance_order: list[int] | None = absent_when_none(
+        "Cost 'time': the shortest-path order compared with")
+    distance_order_length: float | None = absent_when_none(
+        "Cost 'time': its tool path length, mm")
+    rolls: list[float] | None = absent_when_none(
+        "Cost 'time': the roll joint (rad) of each hole's IK branch, in drilling order")
+    q: list[list[float]] | None = absent_when_none(
+        "Cost 'time': the arm's configuration at each hole, in drilling order (rad / mm)")
 
 
 def run_sequence(params: SequenceParams, progress: Progress) -> SequenceResult:
     """Drilling order of the holes: an open path from ``start`` (or the first hole)."""
+    if params.cost == "time":
+        return _run_sequence_by_time(params, progress)
     from planning.sequencing import sequence_holes
 
     res = sequence_holes(params.holes, params.start, params.algorithm, params.seed,
@@ -129,8 +212,48 @@ def run_sequence(params: SequenceParams, progress: Progress) -> SequenceResult:
     )
 
 
+def _run_sequence_by_time(params: SequenceParams, progress: Progress) -> SequenceResult:
+    """The order (and IK branches) of least boom travel time, beside the shortest path's."""
+    from kinematics.rigs import builtin_rig
+    from planning.drilling.boom_time import sequence_by_boom_time
+    from planning.sequencing import sequence_holes
+
+    progress(0.0, "shortest path")
+    dist = sequence_holes(params.holes, params.start, params.algorithm, params.seed,
+                          params.params)
+    progress(0.3, "IK branches and boom time")
+    model = builtin_rig(params.rig).arms[params.arm]
+    res = sequence_by_boom_time(model, params.holes, start=params.start,
+                                algorithm=params.algorithm, params=params.params,
+                                seed=params.seed, distance_order=dist.order)
+    progress(1.0, "done")
+    return SequenceResult(
+        order=res.order.tolist(),
+        length=res.length,
+        length_m=res.length / 1000.0,
+        runtime_s=dist.runtime_s + res.runtime_s,
+        convergence=[res.length],
+        algorithm=params.algorithm,
+        iterations=res.rounds,
+        evaluations=dist.evaluations,
+        message=f"least boom time {res.time_s:.1f} s, {res.saved_s:.1f} s less than the "
+                f"shortest path's order ({res.distance_time_s:.1f} s); {res.rounds} rounds "
+                "of order and branches",
+        seed=params.seed,
+        cost="time",
+        boom_time_s=res.time_s,
+        boom_time_distance_order_s=res.distance_time_s,
+        boom_time_saved_s=res.saved_s,
+        distance_order=res.distance_order.tolist(),
+        distance_order_length=res.distance_length,
+        rolls=res.roll.tolist(),
+        q=res.q.tolist(),
+    )
+
+
 register(JobKind("sequence", SequenceParams, SequenceResult, run_sequence,
-                 "Drilling order of a face's holes (open path, IGA / ACO / AGA / auto)"))
+                 "Drilling order of a face's holes (open path, IGA / ACO / AGA / auto), by "
+                 "tool path or by boom travel time"))
 
 
 # ---- multiarm --------------------------------------------------------------------------------
@@ -162,6 +285,8 @@ class MultiarmParams(Params):
     planner_params: PlannerKnobs = None
     sequencer: Algorithm = "auto"
     sequencer_params: SequencerKnobs = None
+    cost: Cost = Field("distance", description=COST_DESCRIPTION + "; the transfers hold "
+                       "roll at 0, so each hole has one branch here")
     seed: int = Field(0, ge=0, le=MAX_SEED)
     balance: Literal["count", "work"] = "count"
     counts: dict[str, Annotated[int, Field(ge=0, le=MAX_FACE_HOLES)]] | None = None
@@ -175,11 +300,7 @@ class MultiarmParams(Params):
     @field_validator("rig")
     @classmethod
     def _rig(cls, v):
-        from kinematics.rigs import BUILTIN_RIG_IDS
-
-        if v not in BUILTIN_RIG_IDS:
-            raise ValueError(f"unknown rig {v!r}; built-in: {', '.join(BUILTIN_RIG_IDS)}")
-        return v
+        return _check_rig(v)
 
     _allocation: Any = PrivateAttr(None)
 
@@ -246,10 +367,10 @@ class MultiarmParams(Params):
         return self._allocation
 
 
-def _error_at(field: str, exc: ValueError) -> ValidationError:
+def _error_at(field: str | tuple, exc: ValueError) -> ValidationError:
     """``exc`` as a validation error at its own ``loc`` if it carries one, else at
-    ``field``."""
-    loc = tuple(getattr(exc, "loc", None) or (field,))
+    ``field`` (a name or a path)."""
+    loc = tuple(getattr(exc, "loc", None) or (field if isinstance(field, tuple) else (field,)))
     # Braces would be read as placeholders of the message template.
     message = str(exc).replace("{", "(").replace("}", ")")
     return ValidationError.from_exception_data("MultiarmParams", [
@@ -276,6 +397,10 @@ class MultiarmArm(Result):
     planner_counts: dict[str, int] = Field(description="Moves planned by each planner")
     peak_acceleration: list[float] = Field(description="Peak |acceleration| per joint")
     max_rotational_acceleration: float = Field(description="rad/s^2")
+    boom_time_s: float = Field(description="Estimated boom travel time along its drilling "
+                               "order (swing, pitch, telescope at the transfer limits), s")
+    boom_time_distance_order_s: float = Field(description="The same along the shortest-path "
+                                              "order, s")
 
 
 class MultiarmResult(Result):
@@ -298,6 +423,12 @@ class MultiarmResult(Result):
     collisions_by_pair: dict[str, int]
     travel_m: dict[str, float] = Field(description="Tool path length per arm, m")
     total_travel_m: float
+    cost: Cost = Field(description="What the drilling orders minimise")
+    boom_time_s: float = Field(description="Estimated boom travel time between holes, all "
+                               "arms, s")
+    boom_time_distance_order_s: float = Field(description="The same for the shortest-path "
+                                              "orders, s")
+    boom_time_saved_s: float = Field(description="boom_time_distance_order_s - boom_time_s")
     acceleration_bound: float = Field(description="rad/s^2 (paper 002)")
     check_dt: float | None = Field(description="s between collision checks")
     samples: int = Field(description="Samples checked")
@@ -315,7 +446,7 @@ def run_multiarm(params: MultiarmParams, progress: Progress) -> MultiarmResult:
                      sequencer=params.sequencer, sequencer_params=params.sequencer_params,
                      seed=params.seed, radii=params.radii, standoff=params.standoff,
                      drill_time_s=params.drill_time_s, middle_park=params.middle_park,
-                     progress=progress)
+                     progress=progress, cost=params.cost)
     if params.holes is not None:
         labels = [f"{a}[{k}]" for a in allocation.arms for k in range(len(params.holes[a]))]
     else:
@@ -325,6 +456,7 @@ def run_multiarm(params: MultiarmParams, progress: Progress) -> MultiarmResult:
     out_t = np.arange(0.0, plan.t[-1] + 1e-9, dt) if len(plan.t) else np.zeros(1)
     pick = np.minimum(np.searchsorted(plan.t, out_t), len(plan.t) - 1)
     arms = {}
+    boom = {a: _boom_times(plan, a) for a in plan.arms}
     for a, ap in plan.arms.items():
         tl = ap.timeline
         acc = plan.accelerations[a]
@@ -339,6 +471,8 @@ def run_multiarm(params: MultiarmParams, progress: Progress) -> MultiarmResult:
             planner_counts=ap.planner_counts,
             peak_acceleration=acc.tolist(),
             max_rotational_acceleration=float(acc[list(ROTATIONAL_JOINTS)].max()),
+            boom_time_s=boom[a][0],
+            boom_time_distance_order_s=boom[a][1],
         )
     min_distance = {p: _window_min(d, plan.t, out_t).tolist()
                     for p, d in plan.min_distance.items()}
@@ -357,11 +491,35 @@ def run_multiarm(params: MultiarmParams, progress: Progress) -> MultiarmResult:
         collisions_by_pair=plan.collisions,
         travel_m={a: ap.tool_path_m for a, ap in plan.arms.items()},
         total_travel_m=plan.tool_path_m(),
+        cost=params.cost,
+        boom_time_s=sum(b[0] for b in boom.values()),
+        boom_time_distance_order_s=sum(b[1] for b in boom.values()),
+        boom_time_saved_s=sum(b[1] - b[0] for b in boom.values()),
         acceleration_bound=PAPER_ACCELERATION_BOUND,
         check_dt=float(plan.t[1] - plan.t[0]) if len(plan.t) > 1 else None,
         samples=int(len(plan.t)),
         runtime_s=plan.runtime_s,
     )
+
+
+def _boom_times(plan, arm: str) -> tuple[float, float]:
+    """An arm's boom time along its order and along the shortest-path order, s (one hole:
+    the move from the park pose, the same for both; none: 0)."""
+    ap = plan.arms[arm]
+    if ap.sequence is not None:
+        return (float(ap.sequence.extra["boom_time_s"]),
+                float(ap.sequence.extra["boom_time_distance_order_s"]))
+    moves = ap.timeline.moves
+    if not len(ap.order) or not moves:
+        return 0.0, 0.0
+    from planning.drilling.boom_time import BoomTime
+    from planning.drilling.multiarm import MotionLimits
+
+    limits = MotionLimits()
+    timing = BoomTime.planned_joints(moves[0].space.model, limits.velocity,
+                                     limits.acceleration)
+    t = timing.path_time([moves[0].q_goal], moves[0].q_start)
+    return t, t
 
 
 register(JobKind("multiarm", MultiarmParams, MultiarmResult, run_multiarm,

@@ -188,17 +188,12 @@ def check_batch_memory(algorithm: str, knobs: dict[str, Any] | None,
                        obstacle_types: list[str]) -> None:
     """ValueError when one batch of obstacle checks of ``algorithm`` with ``knobs`` among
     obstacles of ``obstacle_types`` would take more than ``MAX_BATCH_BYTES``."""
-    if not obstacle_types or algorithm not in PATH_KNOBS:
+    # ``auto`` sizes its own arrays (broad phase, chunked checks): nothing to refuse.
+    if not obstacle_types or algorithm not in PATH_KNOBS or algorithm == "auto":
         return
     per_segment = sum(PAIR_BYTES[t] for t in obstacle_types)
-    knobs = knobs or {}
-    if algorithm == "auto":  # every surface sample is checked against every obstacle
-        samples = knobs.get("samples", PATH_KNOBS["auto"].model_fields["samples"].default)
-        segments = samples * len(obstacle_types)
-        what = f"{samples} surface samples per obstacle"
-    else:
-        segments = _batch_segments(algorithm, knobs)
-        what = "one batch of candidate paths"
+    segments = _batch_segments(algorithm, (knobs or {}))
+    what = "one batch of candidate paths"
     need = segments * per_segment
     if need > MAX_BATCH_BYTES:
         raise ValueError(

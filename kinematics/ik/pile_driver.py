@@ -27,12 +27,14 @@ theta2 (eq. 14); eq. 17 closes theta4. Corrections to the printed algebra:
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
+from ..fast import c_array, kernels, pile_data
 from ..model import RobotModel
 from ._wrist import has_6r_structure, reduce_targets, rx, rz, wrist_angles
-from .result import IKResult, finish_analytic
+from .result import IKResult, finish_analytic, finish_one
 
 __all__ = ["supports", "solve"]
 
@@ -51,8 +53,12 @@ def supports(model: RobotModel) -> bool:
 def solve(
     model: RobotModel, T_target: np.ndarray, q0: np.ndarray | None = None
 ) -> list[IKResult]:
-    """Every IK branch for rigid targets ``T_world_tool (B, 4, 4)`` (world frame, mm),
-    solved for all targets at once; one ``IKResult`` per target."""
+    """Every IK branch for rigid targets ``T_world_tool (B, 4, 4)`` (world frame, mm);
+    one ``IKResult`` per target. On the compiled kernels (``kinematics.fast``) one target at a
+    time, else all targets at once in numpy."""
+    K = kernels()
+    if K is not None:
+        return [_solve_one(K, model, T, q0) for T in T_target]
     j = model.joints
     B = T_target.shape[0]
     off = np.array([jt.offset for jt in j])
@@ -115,11 +121,37 @@ def solve(
     for b in range(B):
         mine = owner == b
         if np.all(np.isnan(c3[mine])):
-            reasons[b] = (
-                f"the stick tip would be {reach[mine].min():.1f} mm from the boom pivot at "
-                f"best, outside [{abs(L2 - L3):.1f}, {L2 + L3:.1f}] mm"
-            )
+            reasons[b] = _out_of_reach(float(reach[mine].min()), L2, L3)
     singular = on_axis | wsing.reshape(B, 2).any(axis=1)
     return finish_analytic(
         model, T_target, branches, owner2, METHOD, q0, reasons=reasons, singular=singular
     )
+
+
+def _out_of_reach(reach: float, L2: float, L3: float) -> str:
+    return (f"the stick tip would be {reach:.1f} mm from the boom pivot at best, outside "
+            f"[{abs(L2 - L3):.1f}, {L2 + L3:.1f}] mm")
+
+
+def _solve_one(K, model: RobotModel, T: np.ndarray, q0: np.ndarray | None) -> IKResult:
+    """``solve`` for one target ``(4, 4)`` on the compiled kernels: the same branches
+    (``_kernels.pile_branches``), checked and ordered by ``finish_one``."""
+    p, rx_m1, rx_ab, pre_inv, tool_inv, off = pile_data(model)
+    hint = _hint(model) if q0 is None else _hints(np.asarray(q0, dtype=float), off)
+    T = c_array(T)
+    diag = np.empty(3)
+    branches = K.pile_branches(p, rx_m1, rx_ab, pre_inv, tool_inv, off, T, *hint, diag)
+    reason = _out_of_reach(float(diag[2]), float(p[2]), float(p[3])) if diag[1] else None
+    return finish_one(K, model, T, branches, METHOD, q0, reason=reason,
+                      singular=bool(diag[0]))
+
+
+def _hints(q: np.ndarray, off: np.ndarray) -> tuple[float, float]:
+    """theta1 and theta_234 of ``q`` (offsets added): the choices at a singularity."""
+    return float(q[0] + off[0]), float(np.sum(q[1:4] + off[1:4]))
+
+
+@lru_cache(maxsize=64)
+def _hint(model: RobotModel) -> tuple[float, float]:
+    """``_hints`` of the middle of the limits, used when no ``q0`` is given."""
+    return _hints(model.mid_configuration(), pile_data(model)[-1])

@@ -8,11 +8,13 @@ from enum import StrEnum
 
 import numpy as np
 
+from ..fast import c_array, chain_of
 from ..fk import fk
 from ..model import RobotModel
 from ..transforms import pose_errors
 
-__all__ = ["IKStatus", "IKResult", "finish_analytic", "expand_turns", "order_by_distance"]
+__all__ = ["IKStatus", "IKResult", "finish_analytic", "finish_one", "expand_turns",
+           "order_by_distance"]
 
 #: Residuals below which a closed-form branch counts as a true solution of the target pose.
 BRANCH_POSITION_TOL = 1e-4  # mm
@@ -111,7 +113,6 @@ def finish_analytic(
     first.
     """
     B = T_target.shape[0]
-    dof = model.dof
     valid = np.all(np.isfinite(branches), axis=1)
     rows, own = branches[valid], owner[valid]
     dp, dr = pose_errors(fk(model, rows), T_target[own]) if len(rows) else (rows[:, 0],) * 2
@@ -134,31 +135,50 @@ def finish_analytic(
     results = []
     for b in range(B):
         sl = slice(bounds[b], bounds[b + 1])
-        sols, errs, ins = expanded[sl], err[sl], inside[sl]
-        sing = bool(singular[b])
-        if len(sols) == 0:
-            reason = reasons[b] or "no closed-form branch reaches the target pose"
-            results.append(IKResult(
-                IKStatus.UNREACHABLE, None, np.empty((0, dof)), math.nan, math.nan,
-                False, method, f"unreachable: {reason}",
-            ))
-        elif not ins[0]:
-            worst = model.limit_violations(sols[0])
-            results.append(IKResult(
-                IKStatus.OUT_OF_LIMITS, None, sols, float(errs[0, 0]), float(errs[0, 1]),
-                False, method,
-                f"reachable only outside the joint limits: {len(sols)} branch(es), the "
-                f"nearest violates {', '.join(worst)}",
-                singular=sing,
-            ))
-        else:
-            good = sols[ins]
-            msg = f"{len(good)} solution(s) within limits"
-            if sing:
-                msg += "; singular configuration: the solutions form a continuous family, " \
-                    "samples returned"
-            results.append(IKResult(
-                IKStatus.OK, good[0], good, float(errs[0, 0]), float(errs[0, 1]), True,
-                method, msg, singular=sing,
-            ))
+        results.append(_one_result(model, method, expanded[sl], err[sl], inside[sl],
+                                   reasons[b], bool(singular[b])))
     return results
+
+
+def finish_one(
+    K, model: RobotModel, T_target: np.ndarray, branches: np.ndarray, method: str,
+    q0: np.ndarray | None, *, reason: str | None, singular: bool,
+) -> IKResult:
+    """``finish_analytic`` for one target ``(4, 4)`` on the compiled kernels ``K``
+    (``_kernels.finish_branches``): the same checks, turns, order and messages."""
+    ch = chain_of(model)
+    has_q0 = q0 is not None
+    q0a = c_array(q0) if has_q0 else np.zeros(model.dof)
+    sols, errs, inside = K.finish_branches(ch.C, ch.prismatic, ch.offset, ch.lower, ch.upper,
+                                           T_target, branches, q0a, has_q0)
+    return _one_result(model, method, sols, errs, inside, reason, singular)
+
+
+def _one_result(model: RobotModel, method: str, sols: np.ndarray, errs: np.ndarray,
+                ins: np.ndarray, reason: str | None, sing: bool) -> IKResult:
+    """The result for one target from its ordered solutions ``(K, dof)`` (within limits
+    first), their residuals ``(K, 2)`` and limit flags ``(K,)``."""
+    if len(sols) == 0:
+        reason = reason or "no closed-form branch reaches the target pose"
+        return IKResult(
+            IKStatus.UNREACHABLE, None, np.empty((0, model.dof)), math.nan, math.nan,
+            False, method, f"unreachable: {reason}",
+        )
+    if not ins[0]:
+        worst = model.limit_violations(sols[0])
+        return IKResult(
+            IKStatus.OUT_OF_LIMITS, None, sols, float(errs[0, 0]), float(errs[0, 1]),
+            False, method,
+            f"reachable only outside the joint limits: {len(sols)} branch(es), the "
+            f"nearest violates {', '.join(worst)}",
+            singular=sing,
+        )
+    good = sols[ins]
+    msg = f"{len(good)} solution(s) within limits"
+    if sing:
+        msg += "; singular configuration: the solutions form a continuous family, " \
+            "samples returned"
+    return IKResult(
+        IKStatus.OK, good[0], good, float(errs[0, 0]), float(errs[0, 1]), True,
+        method, msg, singular=sing,
+    )

@@ -14,12 +14,14 @@ repeated over the extra turns that joints with ranges past ±180° allow.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
+from ..fast import c_array, kernels, wrist_data
 from ..model import RobotModel
 from ._wrist import has_6r_structure, reduce_targets, rx, rz, wrist_angles
-from .result import IKResult, finish_analytic
+from .result import IKResult, finish_analytic, finish_one
 
 __all__ = ["supports", "solve"]
 
@@ -35,8 +37,12 @@ def supports(model: RobotModel) -> bool:
 def solve(
     model: RobotModel, T_target: np.ndarray, q0: np.ndarray | None = None
 ) -> list[IKResult]:
-    """Every IK branch for rigid targets ``T_world_tool (B, 4, 4)`` (world frame, mm),
-    solved for all targets at once; one ``IKResult`` per target."""
+    """Every IK branch for rigid targets ``T_world_tool (B, 4, 4)`` (world frame, mm);
+    one ``IKResult`` per target. On the compiled kernels (``kinematics.fast``) one target at a
+    time, else all targets at once in numpy."""
+    K = kernels()
+    if K is not None:
+        return [_solve_one(K, model, T, q0) for T in T_target]
     j = model.joints
     B = T_target.shape[0]
     off = np.array([jt.offset for jt in j])
@@ -88,16 +94,45 @@ def solve(
 
     reasons: list[str | None] = [None] * B
     for b in np.flatnonzero(too_close):
-        reasons[b] = (
-            f"the wrist centre is {R_xy[b]:.3f} mm from the axis of joint 1, closer than the "
-            f"shoulder offset {abs(e):.3f} mm"
-        )
+        reasons[b] = _too_close(float(R_xy[b]), e)
     for b in np.flatnonzero(~too_close & np.all(np.isnan(K), axis=1)):
-        dist = float(np.hypot(X[b, 0], Y[b, 0]))
-        reasons[b] = (
-            f"the wrist centre is {dist:.1f} mm from the shoulder axis, outside the arm's "
-            f"reach [{abs(a2 - rho):.1f}, {a2 + rho:.1f}] mm"
-        )
+        reasons[b] = _out_of_reach(float(np.hypot(X[b, 0], Y[b, 0])), a2, rho)
     return finish_analytic(
         model, T_target, branches, owner, METHOD, q0, reasons=reasons, singular=singular
     )
+
+
+def _too_close(r_xy: float, e: float) -> str:
+    return (f"the wrist centre is {r_xy:.3f} mm from the axis of joint 1, closer than the "
+            f"shoulder offset {abs(e):.3f} mm")
+
+
+def _out_of_reach(dist: float, a2: float, rho: float) -> str:
+    return (f"the wrist centre is {dist:.1f} mm from the shoulder axis, outside the arm's "
+            f"reach [{abs(a2 - rho):.1f}, {a2 + rho:.1f}] mm")
+
+
+def _solve_one(K, model: RobotModel, T: np.ndarray, q0: np.ndarray | None) -> IKResult:
+    """``solve`` for one target ``(4, 4)`` on the compiled kernels: the same branches
+    (``_kernels.wrist_branches``), checked and ordered by ``finish_one``."""
+    p, rx_a1, rx_m3, rx_ab, pre_inv, tool_inv, off = wrist_data(model)
+    hint = _hint(model) if q0 is None else (float(q0[0] + off[0]), float(q0[3] + off[3]))
+    T = c_array(T)
+    diag = np.empty(5)
+    branches = K.wrist_branches(p, rx_a1, rx_m3, rx_ab, pre_inv, tool_inv, off, T, *hint,
+                                diag)
+    reason = None
+    if diag[1]:
+        reason = _too_close(float(diag[2]), float(p[8]))
+    elif diag[3]:
+        reason = _out_of_reach(float(diag[4]), float(p[2]), float(p[4]))
+    return finish_one(K, model, T, branches, METHOD, q0, reason=reason,
+                      singular=bool(diag[0]))
+
+
+@lru_cache(maxsize=64)
+def _hint(model: RobotModel) -> tuple[float, float]:
+    """Joint 1 and 4 angles (offsets added) of the middle of the limits: the choice at a
+    singularity when no ``q0`` is given."""
+    mid = model.mid_configuration()
+    return (float(mid[0] + model.joints[0].offset), float(mid[3] + model.joints[3].offset))

@@ -45,12 +45,13 @@ from kinematics.fk import fk
 from kinematics.rigs import Rig
 
 from ..registry import algorithm_classes, make
-from ..sequencing import SequenceResult, sequence_holes
+from ..sequencing import SequenceResult
 from ..status import PlanStatus
 from ..trajectories.bspline import quintic_bspline
 from ..trajectories.time_scaling import fit_to_limits
 from ..trajectories.trajectory import Limits, Trajectory
 from .allocation import Allocation, allocate_holes, home_configuration
+from .boom_time import COSTS, BoomTime, sequence_arm
 from .envelopes import (
     ArmEnvelope,
     capsule_distances,
@@ -476,6 +477,7 @@ class FaceOptions:
     middle_park: str = "last_hole"
     fallback: bool = True
     check_dt: float = CHECK_DT
+    cost: str = "distance"
 
     def __post_init__(self) -> None:
         if self.middle_park not in ("last_hole", "home"):
@@ -485,6 +487,9 @@ class FaceOptions:
             raise FieldError("standoff", "standoff: must be in [0, 2000] mm")
         if not self.drill_time_s >= 0:
             raise FieldError("drill_time_s", "drill_time_s: must be >= 0")
+        if self.cost not in COSTS:
+            raise FieldError("cost", f"cost: must be one of {', '.join(COSTS)}, got "
+                             f"{self.cost!r}")
         if not 1e-4 <= self.check_dt <= 0.1:
             raise FieldError("check_dt", "check_dt: must be in [0.0001, 0.1] s")
 
@@ -618,6 +623,7 @@ def plan_face(
     fallback: bool = True,
     check_dt: float = CHECK_DT,
     progress: ProgressFn | None = None,
+    cost: str = "distance",
 ) -> FacePlan:
     """Plan a whole face for ``rig`` (e.g. ``builtin_rig("tunnel_jumbo")``).
 
@@ -628,7 +634,10 @@ def plan_face(
     ``envelopes.drill_arm_envelope``; ``standoff`` (mm) the feed retraction between holes;
     ``drill_time_s`` the dwell on each hole; ``middle_park``: ``"last_hole"`` (the paper) or
     ``"home"``; ``fallback``: try the other planner on a move the first cannot plan
-    (reported per arm in ``planner_counts``). Seeded and reproducible.
+    (reported per arm in ``planner_counts``); ``cost``: each arm's drilling order minimises
+    its tool path (``"distance"``) or the boom's travel time between holes (``"time"``,
+    ``boom_time.sequence_arm``; every arm plan's ``sequence.extra`` gives both orders'
+    boom times). Seeded and reproducible.
 
     The steps: allocate and sequence each arm's holes (``_start_face``), plan the middle
     arm's moves (``_plan_middle_arm``) and then the side arms' (``_plan_side_arms``), check
@@ -641,7 +650,7 @@ def plan_face(
         planner=planner, planner_params=planner_params, sequencer=sequencer,
         sequencer_params=sequencer_params, seed=seed, radii=radii, standoff=standoff,
         drill_time_s=drill_time_s, limits=limits or MotionLimits(), middle_park=middle_park,
-        fallback=fallback, check_dt=check_dt)
+        fallback=fallback, check_dt=check_dt, cost=cost)
     run = _start_face(rig, holes, options, allocation, balance, counts)
     report(0.05, "sequenced")
     moves = _MoveProgress(report, sum(len(run.allocation.indices[a]) for a in run.working) + 1)
@@ -699,8 +708,11 @@ def _sequenced_arm(name: str, space: ArmSpace, park: np.ndarray, start: np.ndarr
     sequence = None
     order = idx
     if len(idx) >= 2:
-        sequence = sequence_holes(allocation.holes[idx], start, options.sequencer, seed,
-                                  options.sequencer_params)
+        timing = BoomTime.planned_joints(space.model, options.limits.velocity,
+                                         options.limits.acceleration)
+        sequence = sequence_arm(allocation.holes[idx], allocation.q[name], park, start,
+                                timing, cost=options.cost, algorithm=options.sequencer,
+                                params=options.sequencer_params, seed=seed)
         order = idx[sequence.order]
     q_holes = allocation.q[name][np.searchsorted(idx, order)] if len(idx) else \
         np.zeros((0, 7))

@@ -132,9 +132,7 @@ def shortcut(scene: Scene, path, rng: np.random.Generator | None = None,
     path = dedupe(np.asarray(path, dtype=float))
 
     def clear(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        if not scene.obstacles:
-            return np.ones(len(a), dtype=bool)
-        return scene.min_segment_clearance(a, b) >= margin
+        return scene.segments_clear(a, b, margin)
 
     out, i = [path[0]], 0
     while i < len(path) - 1:

@@ -28,6 +28,8 @@ import numpy as np
 
 from kinematics.errors import FieldError, loc_from_path
 
+from .broadphase import BroadPhase
+
 __all__ = [
     "Sphere",
     "Box",
@@ -41,6 +43,15 @@ __all__ = [
 
 #: Largest |coordinate| (mm) accepted in a scene: beyond it the numbers stop being useful.
 MAX_COORDINATE = 1e9
+#: From this many obstacles on, clearance checks go through the broad phase
+#: (``planning.paths.broadphase``); below it every pair is computed, which is faster there.
+BROAD_PHASE_MIN_OBSTACLES = 24
+#: Most temporary bytes one batch of exact distance computations may take: larger inputs
+#: are computed in chunks of this size.
+CHUNK_BYTES = 64 << 20
+#: Peak temporary bytes per (segment, obstacle) pair of the exact kernels, by obstacle type
+#: (measured, with room).
+PAIR_BYTES = {"sphere": 120, "capsule": 220, "box": 3600}
 
 
 def _bad(name: str, message: str) -> FieldError:
@@ -329,6 +340,13 @@ class Scene:
         arr["ca"] = np.array([o.a for o in cap]).reshape(-1, 3)
         arr["cb"] = np.array([o.b for o in cap]).reshape(-1, 3)
         arr["cr"] = np.array([o.radius for o in cap], dtype=float)
+        # Each obstacle's kind (0 sphere, 1 capsule, 2 box) and row in that kind's arrays.
+        kind_code = {"sphere": 0, "capsule": 1, "box": 2}
+        arr["kind_of"] = np.array([kind_code[o.kind] for o in obs], dtype=int)
+        arr["row_of"] = np.zeros(len(obs), dtype=int)
+        for kind in ("sphere", "box", "capsule"):
+            idx = arr[kind + "_index"]
+            arr["row_of"][idx] = np.arange(len(idx))
         self._arrays.update(arr)
 
     @classmethod
@@ -370,6 +388,62 @@ class Scene:
         return float(np.linalg.norm(self.upper - self.lower))
 
     # ---- distances ------------------------------------------------------------------------
+    def bounding_spheres(self) -> tuple[np.ndarray, np.ndarray]:
+        """Centres ``(n, 3)`` and radii ``(n,)`` of balls containing each obstacle."""
+        centres = np.empty((len(self.obstacles), 3))
+        radii = np.empty(len(self.obstacles))
+        for i, o in enumerate(self.obstacles):
+            if o.kind == "sphere":
+                centres[i], radii[i] = o.center, o.radius
+            elif o.kind == "box":
+                centres[i] = 0.5 * (o.lower + o.upper)
+                radii[i] = 0.5 * float(np.linalg.norm(o.upper - o.lower))
+            else:
+                centres[i] = 0.5 * (o.a + o.b)
+                radii[i] = 0.5 * float(np.linalg.norm(o.b - o.a)) + o.radius
+        return centres, radii
+
+    def bounding_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Corners ``lower (n, 3)``, ``upper (n, 3)`` of axis-aligned boxes containing each
+        obstacle."""
+        lo = np.empty((len(self.obstacles), 3))
+        hi = np.empty((len(self.obstacles), 3))
+        for i, o in enumerate(self.obstacles):
+            if o.kind == "sphere":
+                lo[i], hi[i] = o.center - o.radius, o.center + o.radius
+            elif o.kind == "box":
+                lo[i], hi[i] = o.lower, o.upper
+            else:
+                lo[i] = np.minimum(o.a, o.b) - o.radius
+                hi[i] = np.maximum(o.a, o.b) + o.radius
+        return lo, hi
+
+    def obstacle_sizes(self) -> np.ndarray:
+        """Each obstacle's size ``(n,)`` mm: the radius of a sphere or capsule, half the
+        smallest side of a box."""
+        if "sizes" not in self._arrays:
+            self._arrays["sizes"] = np.array([
+                0.5 * float(np.min(o.upper - o.lower)) if o.kind == "box" else o.radius
+                for o in self.obstacles], dtype=float)
+        return self._arrays["sizes"]
+
+    @property
+    def broad_phase(self) -> BroadPhase | None:
+        """The obstacles' broad phase (built on first use), or None below
+        ``BROAD_PHASE_MIN_OBSTACLES`` obstacles."""
+        if len(self.obstacles) < BROAD_PHASE_MIN_OBSTACLES:
+            return None
+        if "broad_phase" not in self._arrays:
+            self._arrays["broad_phase"] = BroadPhase(*self.bounding_spheres(),
+                                                     *self.bounding_boxes())
+        return self._arrays["broad_phase"]
+
+    def _dense_rows(self) -> int:
+        """Segments per chunk of ``segment_clearance`` that keep it within ``CHUNK_BYTES``."""
+        a = self._arrays
+        per_segment = sum(PAIR_BYTES[k] * len(a[k + "_index"]) for k in PAIR_BYTES)
+        return max(1, CHUNK_BYTES // max(1, per_segment))
+
     def segment_clearance(self, P0, P1, *, details: bool = False):
         """Signed clearance of segments ``P0, P1 (M, 3)`` to each obstacle ``(M, n_obs)``.
 
@@ -377,7 +451,8 @@ class Scene:
         closest point, and ``normal (M, n_obs, 3)``, the unit gradient of the clearance with
         respect to that point (pointing away from the obstacle): the clearance's gradient
         with respect to ``P0`` is ``(1 - t) normal`` and to ``P1`` is ``t normal`` where the
-        closest point is unique.
+        closest point is unique. Computed in chunks of segments, so the temporary memory
+        stays within ``CHUNK_BYTES`` beside the answer itself.
         """
         P0 = np.asarray(P0, dtype=float).reshape(-1, 3)
         P1 = np.asarray(P1, dtype=float).reshape(-1, 3)
@@ -385,6 +460,19 @@ class Scene:
         out = np.empty((M, n))
         tt = np.empty((M, n)) if details else None
         nn = np.empty((M, n, 3)) if details else None
+        rows = self._dense_rows()
+        for s in range(0, M, rows):
+            part = slice(s, s + rows)
+            self._dense_clearance(P0[part], P1[part], out[part],
+                                  tt[part] if details else None,
+                                  nn[part] if details else None)
+        if details:
+            return out, tt, nn
+        return out
+
+    def _dense_clearance(self, P0, P1, out, tt, nn) -> None:
+        """``segment_clearance`` of one chunk, written into ``out`` (and ``tt``, ``nn``)."""
+        details = tt is not None
         a = self._arrays
         A, B = P0[:, None, :], P1[:, None, :]
         if len(a["sr"]):
@@ -409,19 +497,163 @@ class Scene:
                 p = A + t[..., None] * (B - A)
                 tt[:, a["box_index"]] = t
                 nn[:, a["box_index"]] = _box_point_sdf(p, a["bl"][None], a["bu"][None])[1]
+
+    def pair_clearance(self, P0, P1, obstacle, *, details: bool = False):
+        """Signed clearance ``(k,)`` of segment ``P0[j]–P1[j]`` to obstacle ``obstacle[j]``
+        (``P0, P1 (k, 3)``, ``obstacle (k,)`` indices): the entries of ``segment_clearance``
+        that are asked for, and only those. ``details=True`` adds ``t (k,)`` and
+        ``normal (k, 3)`` as there."""
+        P0 = np.asarray(P0, dtype=float).reshape(-1, 3)
+        P1 = np.asarray(P1, dtype=float).reshape(-1, 3)
+        obstacle = np.asarray(obstacle, dtype=int).reshape(-1)
+        k = len(obstacle)
+        out = np.empty(k)
+        tt = np.empty(k) if details else None
+        nn = np.empty((k, 3)) if details else None
+        a = self._arrays
+        kind, row = a["kind_of"][obstacle], a["row_of"][obstacle]
+        for code, name in enumerate(("sphere", "capsule", "box")):
+            sel = np.nonzero(kind == code)[0]
+            step = max(1, CHUNK_BYTES // PAIR_BYTES[name])
+            for s in range(0, len(sel), step):
+                j = sel[s:s + step]
+                r, A, B = row[j], P0[j], P1[j]
+                if code == 0:
+                    c = a["sc"][r]
+                    dist, t = segment_point_distance(A, B, c)
+                    out[j] = dist - a["sr"][r]
+                    if details:
+                        nn[j] = _unit(A + t[:, None] * (B - A) - c)
+                elif code == 1:
+                    qa, qb = a["ca"][r], a["cb"][r]
+                    dist, t, u = segment_segment_distance(A, B, qa, qb)
+                    out[j] = dist - a["cr"][r]
+                    if details:
+                        nn[j] = _unit(A + t[:, None] * (B - A) - (qa + u[:, None] * (qb - qa)))
+                else:
+                    lo, hi = a["bl"][r], a["bu"][r]
+                    point = np.all(A == B, axis=1)  # points: the box's distance field
+                    t = np.zeros(len(j))
+                    dist = np.empty(len(j))
+                    if point.any():
+                        dist[point] = _box_point_sdf(A[point], lo[point], hi[point])[0]
+                    if not point.all():
+                        seg = ~point
+                        dist[seg], t[seg] = segment_box_distance(A[seg], B[seg], lo[seg],
+                                                                 hi[seg])
+                    out[j] = dist
+                    if details:
+                        nn[j] = _box_point_sdf(A + t[:, None] * (B - A), lo, hi)[1]
+                if details:
+                    tt[j] = t
         if details:
             return out, tt, nn
         return out
+
+    def near_pairs(self, P0, P1, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every (segment, obstacle) pair whose clearance is at most ``reach`` (mm):
+        ``(segment (k,), obstacle (k,), clearance (k,))``, sorted by segment then
+        obstacle. Through the broad phase when the scene has many obstacles."""
+        P0 = np.asarray(P0, dtype=float).reshape(-1, 3)
+        P1 = np.asarray(P1, dtype=float).reshape(-1, 3)
+        bp = self.broad_phase
+        segs, obs, cls = [], [], []
+        step = bp.chunk() if bp is not None else self._dense_rows()
+        for s in range(0, len(P0), step):
+            A, B = P0[s:s + step], P1[s:s + step]
+            if bp is None:
+                c = self.segment_clearance(A, B)
+                seg, ob = np.nonzero(c <= reach)
+                c = c[seg, ob]
+            else:
+                seg, ob = bp.pairs(A, B, reach)
+                n = len(self.obstacles)
+                key = np.unique(seg * n + ob)  # once each, by segment then obstacle
+                seg, ob = key // n, key % n
+                c = self.pair_clearance(A[seg], B[seg], ob)
+                near = c <= reach
+                seg, ob, c = seg[near], ob[near], c[near]
+            segs.append(seg + s)
+            obs.append(ob)
+            cls.append(c)
+        if not segs:
+            return np.empty(0, dtype=int), np.empty(0, dtype=int), np.empty(0)
+        return np.concatenate(segs), np.concatenate(obs), np.concatenate(cls)
 
     def point_clearance(self, X) -> np.ndarray:
         """Signed clearance of points ``X (M, 3)`` to each obstacle ``(M, n_obs)``."""
         X = np.asarray(X, dtype=float).reshape(-1, 3)
         return self.segment_clearance(X, X)
 
+    def segments_clear(self, P0, P1, margin: float | None = None) -> np.ndarray:
+        """``(M,)`` bool: segment ``P0[i]–P1[i]`` keeps a clearance of at least ``margin``
+        (default the scene's ``safety_margin``) to every obstacle. Exact: only pairs whose
+        bounding spheres come within ``margin`` are computed, and no other pair can fail."""
+        margin = self.safety_margin if margin is None else float(margin)
+        P0 = np.asarray(P0, dtype=float).reshape(-1, 3)
+        P1 = np.asarray(P1, dtype=float).reshape(-1, 3)
+        ok = np.ones(len(P0), dtype=bool)
+        if not self.obstacles:
+            return ok
+        bp = self.broad_phase
+        if bp is None:
+            step = self._dense_rows()
+            for s in range(0, len(P0), step):
+                c = self.segment_clearance(P0[s:s + step], P1[s:s + step])
+                ok[s:s + step] = np.all(c >= margin, axis=1)
+            return ok
+        step = bp.chunk()
+        for s in range(0, len(P0), step):
+            A, B = P0[s:s + step], P1[s:s + step]
+            seg, ob = bp.pairs(A, B, margin)
+            if len(seg):
+                c = self.pair_clearance(A[seg], B[seg], ob)
+                ok[s + seg[c < margin]] = False
+        return ok
+
     def min_segment_clearance(self, P0, P1) -> np.ndarray:
-        """Least clearance over obstacles of each segment ``(M,)`` (inf with no obstacles)."""
-        c = self.segment_clearance(P0, P1)
-        return c.min(axis=1) if c.shape[1] else np.full(len(c), np.inf)
+        """Least clearance over obstacles of each segment ``(M,)`` (inf with no obstacles).
+
+        Exact. With many obstacles it asks the broad phase for the pairs within a reach that
+        grows fourfold until each segment has a pair within it: an obstacle left out lies
+        beyond the reach, so farther than the least clearance found."""
+        P0 = np.asarray(P0, dtype=float).reshape(-1, 3)
+        P1 = np.asarray(P1, dtype=float).reshape(-1, 3)
+        M = len(P0)
+        out = np.full(M, np.inf)
+        if not self.obstacles:
+            return out
+        bp = self.broad_phase
+        if bp is None:
+            step = self._dense_rows()
+            for s in range(0, M, step):
+                out[s:s + step] = self.segment_clearance(P0[s:s + step],
+                                                         P1[s:s + step]).min(axis=1)
+            return out
+        todo = np.arange(M)
+        reach = 0.02 * self.diagonal
+        for _ in range(4):
+            if not len(todo):
+                return out
+            left = []
+            step = bp.chunk()
+            for s in range(0, len(todo), step):
+                rows = todo[s:s + step]
+                A, B = P0[rows], P1[rows]
+                seg, ob = bp.pairs(A, B, reach)
+                best = np.full(len(rows), np.inf)
+                if len(seg):
+                    np.minimum.at(best, seg, self.pair_clearance(A[seg], B[seg], ob))
+                found = best <= reach
+                out[rows[found]] = best[found]
+                left.append(rows[~found])
+            todo = np.concatenate(left)
+            reach *= 4.0
+        step = self._dense_rows()
+        for s in range(0, len(todo), step):  # far from every obstacle: all pairs
+            rows = todo[s:s + step]
+            out[rows] = self.segment_clearance(P0[rows], P1[rows]).min(axis=1)
+        return out
 
     def path_clearance(self, path) -> float:
         """Least clearance (mm) of a polyline ``(n, 3)`` over all its segments."""
@@ -442,7 +674,9 @@ class Scene:
         path = np.asarray(path, dtype=float).reshape(-1, 3)
         if not np.all(np.isfinite(path)) or not np.all(self.in_bounds(path)):
             return False
-        return self.path_clearance(path) >= margin
+        if len(path) == 1:
+            path = np.vstack([path, path])
+        return bool(np.all(self.segments_clear(path[:-1], path[1:], margin)))
 
     def check_endpoint(self, point, name: str) -> np.ndarray:
         """Validate a start or goal ``(3,)``: finite, in bounds, clear of every obstacle by
@@ -463,18 +697,21 @@ class Scene:
 
     # ---- surfaces (for visibility graphs) ---------------------------------------------------
     def surface_points(self, index: int, n: int, offset: float,
-                       rng: np.random.Generator | None = None) -> np.ndarray:
+                       rng: np.random.Generator | None = None, *,
+                       rotation: np.ndarray | None = None) -> np.ndarray:
         """``n`` points ``(n, 3)`` at signed distance ``offset`` from obstacle ``index``.
 
         Spheres use a Fibonacci lattice (even, deterministic); boxes and capsules project
         directions from their centre onto the offset surface, which also places points on
-        the rounded edges and corners where shortest paths wrap.
+        the rounded edges and corners where shortest paths wrap. The lattice is turned by
+        ``rotation (3, 3)`` if given, else by a random rotation drawn from ``rng`` if given.
         """
         o = self.obstacles[index]
         u = _fibonacci_sphere(n)
-        if rng is not None:  # a random rotation of the lattice
-            Q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-            u = u @ Q.T
+        if rotation is None and rng is not None:  # a random rotation of the lattice
+            rotation, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        if rotation is not None:
+            u = u @ np.asarray(rotation, dtype=float).T
         if o.kind == "sphere":
             return o.center + (o.radius + offset) * u
         if o.kind == "capsule":

@@ -2,8 +2,11 @@
 
 ``sequence_holes(holes, start, algorithm, seed, params)`` is the entry point; the algorithms
 are the paper's IGA (``iga``), its two baselines ACO (``aco``) and AGA (``aga``), and our
-near-optimal ``auto`` (exact dynamic programming on small faces, iterated 2-opt/Or-opt
-above). Paper 002, sections 3.2 and 4.1.
+near-optimal ``auto`` (exact dynamic programming on small faces, a compiled iterated 2-opt /
+Or-opt / Lin-Kernighan search over neighbour lists above: ``auto``, ``oropt``,
+``candidates``). Paper 002, sections 3.2 and 4.1. Any symmetric cost table can be sequenced
+too (``SequencingProblem.from_costs``), and nodes with several alternatives each (IK
+branches of a hole) by ``branches``.
 """
 
 from __future__ import annotations

@@ -6,6 +6,9 @@ starting from the arm's current tool position and not returning; minimise the to
 ``D = d(start, h_1) + sum_k d(h_k, h_{k+1})`` (Euclidean, mm). Without a start position the
 first hole of the list is the start (and is drilled first).
 
+The same open path over any symmetric cost table (e.g. a boom's travel time between holes)
+is a ``SequencingProblem.from_costs``; every sequencer takes either.
+
 Internally a sequencer works on *free nodes*: the holes other than a start hole, numbered
 ``0..n-1``, with distances ``D (n, n)`` between them and ``d0 (n,)`` from the start. An
 *order* is a permutation ``(n,)`` of free nodes; a batch of orders is ``(B, n)``. The local
@@ -18,7 +21,7 @@ Every sequencer is a frozen dataclass of its parameters (defaults = the paper's)
 seeded ``numpy.random.Generator``, keeps a convergence history (best length after each
 iteration) and reports progress through a ``planning.budget.Budget``, as the continuous
 optimisers in ``planning.optimisers`` do (``iterative``). The exact solver is in ``exact``,
-the constructive start and the local-search moves in ``local``.
+the dense reference moves in ``local``, the compiled search of ``auto`` in ``oropt``.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from functools import cached_property
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.spatial.distance import cdist
 
 from kinematics.errors import FieldError, loc_from_path
 
@@ -102,20 +106,22 @@ class SequencingProblem:
 
     ``start_hole`` is True when no start was given: ``start = holes[0]`` and hole 0 is drilled
     first. ``free (n,)`` maps free node -> hole index; ``D (n, n)`` and ``d0 (n,)`` are the
-    distances between free nodes and from the start, mm.
+    costs between free nodes and from the start: Euclidean distances (mm) between the holes
+    (computed on first use), or the tables given to ``from_costs`` (any symmetric cost, e.g.
+    boom travel time; ``holes`` and ``start`` are then None).
     """
 
-    holes: np.ndarray
-    start: np.ndarray
+    holes: np.ndarray | None
+    start: np.ndarray | None
     start_hole: bool
     free: np.ndarray
-    D: np.ndarray
-    d0: np.ndarray
+    given_D: np.ndarray | None = None
+    given_d0: np.ndarray | None = None
 
     @classmethod
     def from_holes(cls, holes, start=None) -> SequencingProblem:
-        """Validate ``holes (N, 3)`` and the optional ``start (3,)`` (mm) and build the
-        distance tables. ``FieldError`` naming ``holes`` or ``start``."""
+        """Validate ``holes (N, 3)`` and the optional ``start (3,)`` (mm). ``FieldError``
+        naming ``holes`` or ``start``."""
         P = check_holes(holes)
         if start is None:
             s = P[0].copy()
@@ -128,12 +134,75 @@ class SequencingProblem:
             if s.shape != (3,) or not np.all(np.isfinite(s)):
                 raise FieldError("start", "start: must be 3 finite numbers [x, y, z] in mm")
             free = np.arange(len(P))
-        Q = P[free]
-        D = np.linalg.norm(Q[:, None, :] - Q[None, :, :], axis=-1)
-        d0 = np.linalg.norm(Q - s, axis=1)
-        for a in (P, s, free, D, d0):
+        for a in (P, s, free):
             a.setflags(write=False)
-        return cls(P, s, start is None, free, D, d0)
+        return cls(P, s, start is None, free)
+
+    @classmethod
+    def from_costs(cls, costs, start_costs=None, *, name: str = "costs",
+                   symmetry_tol: float = 1e-9) -> SequencingProblem:
+        """A problem on ``N`` nodes with the symmetric costs ``costs (N, N)`` between them and
+        ``start_costs (N,)`` from the start (None: node 0 is the start, visited first).
+        ``FieldError`` naming ``name`` if the costs are not square, finite, non-negative and
+        symmetric (to ``symmetry_tol`` relative to the largest)."""
+        C = np.array(costs, dtype=float)
+        if C.ndim != 2 or C.shape[0] != C.shape[1] or len(C) < 2:
+            raise FieldError(name, f"{name}: must be a square matrix of at least 2 nodes")
+        if not np.all(np.isfinite(C)) or (C < 0).any():
+            raise FieldError(name, f"{name}: must be finite and non-negative")
+        if np.abs(C - C.T).max() > symmetry_tol * max(1.0, float(C.max())):
+            raise FieldError(name, f"{name}: must be symmetric")
+        if start_costs is None:
+            free = np.arange(1, len(C))
+            D, d0 = C[1:, 1:].copy(), C[0, 1:].copy()
+        else:
+            d0 = np.array(start_costs, dtype=float).reshape(-1)
+            if d0.shape != (len(C),) or not np.all(np.isfinite(d0)) or (d0 < 0).any():
+                raise FieldError(f"start_{name}", f"start_{name}: must be {len(C)} finite "
+                                 "non-negative numbers")
+            free, D = np.arange(len(C)), C.copy()
+        np.fill_diagonal(D, 0.0)
+        for a in (free, D, d0):
+            a.setflags(write=False)
+        return cls(None, None, start_costs is None, free, D, d0)
+
+    @property
+    def euclidean(self) -> bool:
+        """Whether the costs are distances between the holes (else given tables)."""
+        return self.given_D is None
+
+    @cached_property
+    def points(self) -> np.ndarray:
+        """The free holes, then the start: ``(n+1, 3)`` mm (Euclidean problems only)."""
+        if not self.euclidean:
+            raise ValueError("a problem built from costs has no points")
+        X = np.vstack([self.holes[self.free], self.start[None]])
+        X.setflags(write=False)
+        return X
+
+    @cached_property
+    def D(self) -> np.ndarray:
+        """Costs between free nodes ``(n, n)`` (mm for hole problems)."""
+        if self.given_D is not None:
+            return self.given_D
+        Q = self.points[: self.n]
+        D = cdist(Q, Q)
+        D.setflags(write=False)
+        return D
+
+    @cached_property
+    def d0(self) -> np.ndarray:
+        """Costs from the start to each free node ``(n,)``."""
+        if self.given_d0 is not None:
+            return self.given_d0
+        d0 = np.linalg.norm(self.points[: self.n] - self.start, axis=1)
+        d0.setflags(write=False)
+        return d0
+
+    @property
+    def size(self) -> int:
+        """Number of holes (nodes), the start hole included."""
+        return self.n + (1 if self.start_hole else 0)
 
     @property
     def n(self) -> int:
@@ -160,10 +229,15 @@ class SequencingProblem:
         return float(E[: self.n].min(axis=1).mean())
 
     def lengths(self, orders) -> np.ndarray:
-        """Path lengths (mm) of a batch of free-node orders: ``(B, n) -> (B,)``."""
+        """Path lengths (mm; cost units for ``from_costs``) of a batch of free-node orders:
+        ``(B, n) -> (B,)``."""
         o = np.asarray(orders)
         if o.shape[1] == 0:
             return np.zeros(len(o))
+        if self.euclidean:  # from the points: no (n, n) table needed
+            X = self.points
+            path = np.concatenate([np.full((len(o), 1), self.n), o], axis=1)
+            return np.linalg.norm(np.diff(X[path], axis=1), axis=2).sum(axis=1)
         return self.d0[o[:, 0]] + self.D[o[:, :-1], o[:, 1:]].sum(axis=1)
 
     def length(self, order) -> float:
@@ -180,13 +254,13 @@ class SequencingProblem:
         ``FieldError`` naming ``order`` if it is not a permutation of the holes (with hole 0
         first when the start is hole 0)."""
         h = np.asarray(hole_order, dtype=int).reshape(-1)
-        if sorted(h.tolist()) != list(range(len(self.holes))):
+        if sorted(h.tolist()) != list(range(self.size)):
             raise FieldError("order", "order: must be a permutation of the hole indices")
         if self.start_hole:
             if h[0] != 0:
                 raise FieldError("order", "order: must start with hole 0 (the start)")
             h = h[1:]
-        inv = np.empty(len(self.holes), dtype=int)
+        inv = np.empty(self.size, dtype=int)
         inv[self.free] = np.arange(self.n)
         return inv[h]
 

@@ -7,12 +7,15 @@ there; the API takes radians and mm).
 
 from __future__ import annotations
 
+import io
 import json
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from app import responses
 
 GLT = "/robots/glt_palletizer"
 PILE = "/robots/pile_driver"
@@ -352,3 +355,136 @@ def test_unreachable_ik_answer_is_strict_json(client):
     res = json.loads(r.text, parse_constant=reject_constant)["results"][0]
     for value in (res["position_error"], res["rotation_error"]):
         assert value is None or math.isfinite(value)
+
+
+# ---------------------------------------------------------------------------------------
+# Encodings: orjson answers are plain JSON, the .npy answers carry the same numbers.
+
+NPY = {"accept": "application/x-npy"}
+
+
+def npy_answer(r) -> np.ndarray:
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"] == "application/x-npy"
+    return np.load(io.BytesIO(r.content), allow_pickle=False)
+
+
+def random_q(client, robot_id: str, n: int, seed: int = 3) -> np.ndarray:
+    lower, upper = joint_limits(client, robot_id)
+    return np.random.default_rng(seed).uniform(lower, upper, (n, len(lower)))
+
+
+@pytest.mark.parametrize("n", [1, 7, 40])
+def test_fk_npy_answer_equals_the_json_answer(client, n):
+    q = random_q(client, "glt_palletizer", n)
+    body = {"q": q.tolist() if n > 1 else q[0].tolist()}
+    poses = npy_answer(client.post(f"{GLT}/fk", json=body, headers=NPY))
+    assert poses.dtype == np.float64 and poses.shape == (n, 4, 4)
+    as_json = np.asarray(client.post(f"{GLT}/fk", json=body).json()["poses"])
+    np.testing.assert_array_equal(poses, as_json)  # JSON floats round-trip exactly
+
+
+def test_fk_all_frames_npy_answer(client):
+    q = random_q(client, "hyper_redundant_9dof", 5)
+    body = {"q": q.tolist(), "frames": "all"}
+    frames = npy_answer(client.post(f"{HYPER}/fk", json=body, headers=NPY))
+    assert frames.shape == (5, 9 + 1, 4, 4)
+    answer = client.post(f"{HYPER}/fk", json=body).json()
+    np.testing.assert_array_equal(frames, answer["frames"])
+    np.testing.assert_array_equal(frames[:, -1], answer["poses"])
+
+
+def test_ik_npy_answer_is_the_best_solution_per_pose_with_nan_rows(client):
+    q = random_q(client, "glt_palletizer", 3, seed=5)
+    T = fk_poses(client, GLT, q)
+    body = {"pose": [*T.tolist(), FAR]}  # three reachable poses, one far out of reach
+    rows = npy_answer(client.post(f"{GLT}/ik", json=body, headers=NPY))
+    results = client.post(f"{GLT}/ik", json=body).json()["results"]
+    assert rows.shape == (4, 6)
+    for row, res in zip(rows, results):
+        if res["q"] is None:
+            assert np.isnan(row).all()
+        else:
+            np.testing.assert_array_equal(row, res["q"])
+    assert not results[3]["success"] and np.isnan(rows[3]).all()
+    assert all(r["success"] for r in results[:3])
+
+
+def test_jacobian_and_workspace_npy_answers(client):
+    q = random_q(client, "pile_driver", 1)[0].tolist()
+    J = npy_answer(client.post(f"{PILE}/jacobian", json={"q": q}, headers=NPY))
+    np.testing.assert_array_equal(J, client.post(f"{PILE}/jacobian", json={"q": q}).json()[
+        "jacobian"])
+    assert J.shape == (6, 6)
+    body = {"samples": 2000, "seed": 4, "return_points": 300, "projections": False}
+    points = npy_answer(client.post(f"{PILE}/workspace", json=body, headers=NPY))
+    assert points.shape == (300, 3)
+    np.testing.assert_array_equal(points,
+                                  client.post(f"{PILE}/workspace", json=body).json()["points"])
+
+
+def test_npy_is_only_sent_when_asked_for(client):
+    r = client.post(f"{GLT}/fk", json={"q": [0.0] * 6}, headers={"accept": "*/*"})
+    assert r.headers["content-type"] == "application/json" and r.json()["poses"]
+    bad = client.post(f"{GLT}/fk", json={"q": [0.0] * 5}, headers=NPY)
+    assert bad.status_code == 422 and names_field(bad.json()["detail"], "q")  # errors: JSON
+
+
+CALLS = [
+    pytest.param(f"{GLT}/fk", {"q": [[0.1 * k] * 6 for k in range(12)]}, id="fk-batch"),
+    pytest.param(f"{HYPER}/fk", {"q": [0.2] * 9, "frames": "all"}, id="fk-frames"),
+    pytest.param(f"{GLT}/ik", {"pose": [EYE, FAR], "all_solutions": True}, id="ik"),
+    pytest.param(f"{PILE}/jacobian", {"q": [0.1, 0.4, -0.5, 0.3, 0.2, 0.1]}, id="jacobian"),
+    pytest.param(f"{PILE}/workspace", {"samples": 500, "return_points": 50}, id="workspace"),
+]
+
+
+@pytest.mark.parametrize("url, body", CALLS)
+def test_orjson_answers_are_the_standard_librarys_json(client, monkeypatch, url, body):
+    """Strict JSON (no NaN or Infinity token), the same values as the standard library's
+    encoder gives, and the same field order."""
+    fast = client.post(url, json=body)
+    monkeypatch.setattr(responses, "legacy", True)
+    slow = client.post(url, json=body)
+    assert fast.status_code == slow.status_code == 200
+    assert fast.headers["content-type"] == "application/json"
+    parsed = json.loads(fast.content, parse_constant=reject_constant)
+    assert parsed == json.loads(slow.content, parse_constant=reject_constant)
+    assert list(parsed) == list(json.loads(slow.content))
+
+
+def test_dumps_writes_non_finite_numbers_as_null():
+    out = responses.dumps({"a": np.array([1.5, np.nan, -np.inf]), "b": math.inf,
+                           "c": np.float64(np.nan), "d": np.zeros((3, 4))[:, ::2],
+                           "e": np.array([True, False]), "f": np.int64(7)})
+    assert json.loads(out, parse_constant=reject_constant) == {
+        "a": [1.5, None, None], "b": None, "c": None, "d": [[0.0, 0.0]] * 3,
+        "e": [True, False], "f": 7}
+
+
+def test_npy_bytes_round_trip():
+    a = np.arange(24, dtype=float).reshape(2, 3, 4)[:, ::2]
+    back = np.load(io.BytesIO(responses.npy_bytes(a)), allow_pickle=False)
+    assert back.dtype == np.float64 and back.shape == (2, 2, 4)
+    np.testing.assert_array_equal(back, a)
+
+
+def test_bodies_orjson_refuses_are_read_as_before(client):
+    """A NaN token is not JSON: orjson refuses the body, the standard library reads it, and
+    the answer is the same 422 naming the field as without orjson."""
+    r = client.post(f"{GLT}/fk", content='{"q":[0,0,0,0,0,NaN]}',
+                    headers={"content-type": "application/json"})
+    assert r.status_code == 422 and names_field(r.json()["detail"], "q")
+    broken = client.post(f"{GLT}/fk", content='{"q":[0,0,', headers={
+        "content-type": "application/json"})
+    assert broken.status_code == 422
+    assert broken.json()["detail"][0]["type"] == "json_invalid"
+
+
+def test_a_body_that_is_not_text_is_400_as_before(client):
+    r = client.post(f"{GLT}/fk", content=b"\xbbUF\xa1",
+                    headers={"content-type": "application/json"})
+    assert r.status_code == 400 and r.json()["detail"][0]["type"] == "http_error"
+    r = client.post(f"{GLT}/ik", content=b"\xbbUF\xa1",
+                    headers={"content-type": "application/json"})
+    assert r.status_code == 400

@@ -61,6 +61,14 @@ def run(client, kind: str, params: dict) -> dict:
     ("multiarm", {"holes": SIDES, "planner_params": {"lam": 1}}, ["planner_params"],
      "planner_params.lam"),
     ("multiarm", {"face": {"width": 10000, "height": 3000}}, ["face"], "height"),
+    ("sequence", {"holes": FACE, "cost": "energy"}, ["cost"], "'distance' or 'time'"),
+    ("multiarm", {"holes": SIDES, "cost": "fast"}, ["cost"], "'distance' or 'time'"),
+    ("sequence", {"holes": FACE, "cost": "time", "arm": "top"}, ["arm"], "no arm 'top'"),
+    ("sequence", {"holes": FACE, "cost": "time", "rig": "nope"}, ["rig"], "unknown rig"),
+    ("sequence", {"holes": [[9000, 0, 0], [9000, 0, 40000]], "cost": "time"}, ["holes", 1],
+     "holes[1]: out of reach of the middle arm"),
+    ("sequence", {"holes": FACE, "cost": "time", "start": [9000, 0, 40000]}, ["start"],
+     "start: the middle arm cannot drill there"),
 ])
 def test_bad_params_are_422_naming_the_field(client, kind, params, loc, words):
     r = submit(client, kind, params)
@@ -102,3 +110,38 @@ def test_multiarm_job(client):
         assert a["max_rotational_acceleration"] <= out["acceleration_bound"] == 0.25
         assert a["travel_m"] > 0
     assert out["total_travel_m"] == pytest.approx(sum(out["travel_m"].values()))
+
+
+def test_sequence_job_by_boom_time(client):
+    """Cost 'time': the order of least boom travel time (IK branches chosen with it), its
+    time beside the shortest-path order's, and the saving; the default stays 'distance'."""
+    start = [9000, 0, -500]
+    out = run(client, "sequence", {"holes": FACE, "start": start, "cost": "time", "seed": 1})
+    assert out["cost"] == "time" and sorted(out["order"]) == list(range(len(FACE)))
+    assert out["boom_time_s"] <= out["boom_time_distance_order_s"] + 1e-9
+    assert out["boom_time_saved_s"] == pytest.approx(
+        out["boom_time_distance_order_s"] - out["boom_time_s"])
+    assert len(out["q"]) == len(out["rolls"]) == len(FACE)
+    assert out["rolls"] == [q[3] for q in out["q"]]
+    H = np.array(FACE, dtype=float)
+    for name, order in (("length", out["order"]),
+                        ("distance_order_length", out["distance_order"])):
+        path = np.vstack([start, H[order]])
+        assert out[name] == pytest.approx(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+    plain = run(client, "sequence", {"holes": FACE, "start": start, "seed": 1})
+    assert plain["cost"] == "distance" and "boom_time_s" not in plain
+    assert plain["order"] == out["distance_order"]
+
+
+def test_multiarm_job_by_boom_time(client):
+    out = run(client, "multiarm", {"holes": SIDES, "cost": "time", "seed": 0,
+                                   "output_dt": 1.0})
+    assert out["success"], out["messages"]
+    assert out["cost"] == "time"
+    arms = out["arms"].values()
+    assert out["boom_time_s"] == pytest.approx(sum(a["boom_time_s"] for a in arms))
+    assert out["boom_time_distance_order_s"] == pytest.approx(
+        sum(a["boom_time_distance_order_s"] for a in arms))
+    assert out["boom_time_saved_s"] >= -1e-9
+    for a in arms:
+        assert 0 < a["boom_time_s"] <= a["boom_time_distance_order_s"] + 1e-9

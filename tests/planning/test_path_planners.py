@@ -3,6 +3,9 @@ five spheres (the paper does not print where; ours sit across the diagonal, seed
 
 from __future__ import annotations
 
+import math
+import tracemalloc
+
 import numpy as np
 import pytest
 
@@ -11,7 +14,7 @@ from planning.optimisers.ga import GeneticAlgorithm
 from planning.optimisers.wolfpack import WolfPack
 from planning.optimisers.wolfpack_improved import ImprovedWolfPack, levy_steps
 from planning.paths import ALGORITHMS, PathEncoding, path_length, plan_path, shortcut
-from planning.paths.auto import certified_shortest_path
+from planning.paths.auto import certified_shortest_path, plan_auto
 from planning.paths.scene import Scene
 from planning.status import PlanStatus
 
@@ -236,3 +239,84 @@ def test_optimisers_minimise_a_plain_box_problem():
         assert res.fun < 0.05, type(opt).__name__
         budget = opt.minimize(problem, np.random.default_rng(0), max_evaluations=500)
         assert budget.evaluations == 500
+
+
+# ---- many obstacles: bounded memory, the fallback ------------------------------------------
+
+TUBE_START, TUBE_GOAL = np.array([40.0, 40.0, 40.0]), np.array([960.0, 960.0, 960.0])
+
+
+def tube_scene(n: int, seed: int = 11) -> Scene:
+    """``n`` spheres (radius 10-30 mm) jittered about a 1 m cube's diagonal: from a few
+    hundred on they merge into a tube the path has to go round."""
+    rng = np.random.default_rng(seed)
+    t = rng.uniform(0.15, 0.85, n)
+    centres = TUBE_START + t[:, None] * (TUBE_GOAL - TUBE_START) + rng.uniform(-30, 30, (n, 3))
+    radii = rng.uniform(10, 30, n)
+    return Scene.create([[0, 0, 0], [1000, 1000, 1000]],
+                        [{"center": c.tolist(), "radius": float(r)}
+                         for c, r in zip(centres, radii)], 1.0)
+
+
+def test_many_spheres_plan_in_bounded_memory():
+    """300 spheres with a small node budget (the 1,000-sphere case, sized down): the old
+    visibility graph over every sample needed memory quadratic in the samples; now every
+    array is sized by the caps."""
+    scene = tube_scene(300)
+    tracemalloc.start()
+    try:
+        res = plan_path(scene, TUBE_START, TUBE_GOAL, "auto", seed=0)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert res.success, res.message
+    assert scene.path_is_clear(res.path) and res.min_clearance >= scene.safety_margin
+    np.testing.assert_array_equal(res.path[[0, -1]], [TUBE_START, TUBE_GOAL])
+    assert res.extra["method"] == "visibility graph + tightening"
+    assert all(r["nodes"] <= 1200 for r in res.extra["rounds"])
+    assert peak < 400 * 2**20, f"peak {peak / 2**20:.0f} MiB"
+    # Going round the tube costs a little: more than the straight line, well under 1 % more.
+    straight = float(np.linalg.norm(TUBE_GOAL - TUBE_START))
+    assert straight < res.length < 1.01 * straight
+
+
+def test_many_spheres_are_reproducible():
+    scene = tube_scene(120, seed=12)
+    a = plan_path(scene, TUBE_START, TUBE_GOAL, "auto", seed=3)
+    b = plan_path(scene, TUBE_START, TUBE_GOAL, "auto", seed=3)
+    np.testing.assert_array_equal(a.path, b.path)
+
+
+def test_sampling_fallback_when_the_node_budget_is_too_small():
+    """16 graph nodes cannot get round the tube: the thinned rounds find nothing, and the
+    RRT* fallback gives a verified path."""
+    scene = tube_scene(150, seed=13)
+    raw = plan_auto(scene, TUBE_START, TUBE_GOAL, np.random.default_rng(0), max_nodes=16,
+                    time_limit=None, fallback_samples=1500)
+    assert raw.status is PlanStatus.OK
+    assert raw.extra["method"] == "rrt_star fallback + tightening"
+    assert raw.extra["fallback_reason"] == "thinned graphs found no path"
+    assert all(r["length"] is None and r["nodes"] <= 16 for r in raw.extra["rounds"])
+    assert math.isinf(raw.extra["rounds"][-1]["bound"])  # every bound was tried
+    assert scene.path_is_clear(raw.path)
+
+
+def test_time_limit_ends_the_graph_and_the_fallback_honestly():
+    scene = tube_scene(150, seed=13)
+    raw = plan_auto(scene, TUBE_START, TUBE_GOAL, np.random.default_rng(0), time_limit=1e-6)
+    assert raw.status is PlanStatus.BUDGET_SPENT and raw.path is None
+    assert raw.extra["method"] == "rrt_star fallback"
+    assert "the time limit" in raw.extra["message"]
+
+
+def test_a_complete_graph_without_a_path_is_no_path_without_fallback():
+    wall = Scene.create([[0, 0, 0], [100, 100, 100]],
+                        [{"type": "box", "lower": [45, -1, -1], "upper": [55, 101, 101]}])
+    raw = plan_auto(wall, START, GOAL, np.random.default_rng(0))
+    assert raw.status is PlanStatus.NO_PATH and "fallback_nodes" not in raw.extra
+
+
+@pytest.mark.parametrize("kwargs", [{"max_nodes": 8}, {"time_limit": 0.0}])
+def test_bad_budgets_are_refused(kwargs):
+    with pytest.raises(ValueError):
+        plan_auto(toy_scene(0), START, GOAL, np.random.default_rng(0), **kwargs)

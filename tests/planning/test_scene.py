@@ -7,9 +7,13 @@ import pickle
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
 
 from kinematics.errors import FieldError
+from planning.paths import scene as scene_module
+from planning.paths.broadphase import BlockedGrid, BroadPhase
 from planning.paths.scene import (
     Scene,
     obstacle_from_dict,
@@ -256,3 +260,104 @@ def test_round_trip_through_dict(scene):
     box = Scene.create([[-5] * 3, [5] * 3], [{"type": "box", "center": [0, 0, 0],
                                               "size": [2, 4, 6]}])
     np.testing.assert_array_equal(box.obstacles[0].lower, [-1, -2, -3])
+
+
+# ---- the broad phase -------------------------------------------------------------------
+
+def random_scene(seed: int, n: int, margin: float = 0.3) -> Scene:
+    """``n`` obstacles of all three kinds, overlapping, in a 20 mm cube (enough of them that
+    the scene's checks go through the broad phase)."""
+    rng = np.random.default_rng(seed)
+    obstacles = []
+    for i in range(n):
+        c = rng.uniform(-10, 10, 3)
+        kind = i % 3
+        if kind == 0:
+            obstacles.append({"center": c.tolist(), "radius": float(rng.uniform(0.1, 2.5))})
+        elif kind == 1:
+            obstacles.append({"type": "box", "center": c.tolist(),
+                              "size": rng.uniform(0.1, 4.0, 3).tolist()})
+        else:
+            obstacles.append({"type": "capsule", "a": c.tolist(),
+                              "b": (c + rng.uniform(-4, 4, 3)).tolist(),
+                              "radius": float(rng.uniform(0.05, 1.0))})
+    return Scene.create([[-12] * 3, [12] * 3], obstacles, margin)
+
+
+def random_segments(seed: int, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Short, long and zero-length segments, some leaving the bounds."""
+    rng = np.random.default_rng(seed)
+    P0 = rng.uniform(-14, 14, (m, 3))
+    P1 = P0 + rng.normal(size=(m, 3)) * rng.choice([0.0, 0.5, 4.0, 15.0], size=(m, 1))
+    return P0, P1
+
+
+@settings(derandomize=True, database=None, max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31), n=st.integers(scene_module.BROAD_PHASE_MIN_OBSTACLES, 90),
+       margin=st.floats(0.0, 1.5))
+def test_broad_phase_checks_equal_brute_force(seed, n, margin):
+    scene = random_scene(seed, n, margin)
+    assert scene.broad_phase is not None
+    P0, P1 = random_segments(seed + 1, 300)
+    dense = scene.segment_clearance(P0, P1)  # every pair, computed directly
+    np.testing.assert_allclose(scene.min_segment_clearance(P0, P1), dense.min(axis=1),
+                               rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(scene.segments_clear(P0, P1), dense.min(axis=1) >= margin)
+    reach = margin + 0.5
+    seg, obs, c = scene.near_pairs(P0, P1, reach)
+    want_seg, want_obs = np.nonzero(dense <= reach)
+    np.testing.assert_array_equal(seg, want_seg)
+    np.testing.assert_array_equal(obs, want_obs)
+    np.testing.assert_allclose(c, dense[seg, obs], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(scene.pair_clearance(P0[seg], P1[seg], obs), c, atol=1e-12)
+
+
+@settings(derandomize=True, database=None, max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31), reach=st.floats(-1.0, 3.0))
+def test_broad_phase_pairs_hold_every_near_pair(seed, reach):
+    """The candidates are a superset of the pairs within reach, whatever the reach."""
+    scene = random_scene(seed, 40)
+    bp = BroadPhase(*scene.bounding_spheres(), *scene.bounding_boxes())
+    P0, P1 = random_segments(seed + 2, 200)
+    seg, obs = bp.pairs(P0, P1, reach)
+    found = set(zip(seg.tolist(), obs.tolist()))
+    dense = scene.segment_clearance(P0, P1)
+    need = set(zip(*(x.tolist() for x in np.nonzero(dense <= reach))))
+    assert need <= found
+    assert np.all(bp.lower_bounds(P0, P1, seg, obs) <= dense[seg, obs] + 1e-9)
+
+
+@settings(derandomize=True, database=None, max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2**31), margin=st.floats(0.0, 1.0))
+def test_blocked_grid_rejects_only_blocked_segments(seed, margin):
+    scene = random_scene(seed, 45, margin)
+    rng = np.random.default_rng(seed)
+    axes, _ = np.linalg.qr(rng.normal(size=(3, 3)))  # a turned frame (rows), centred at 0
+    grid = BlockedGrid(scene, -15.0 * axes.sum(axis=0), axes, [30, 30, 30], margin, 40_000)
+    P0, P1 = random_segments(seed + 3, 400)
+    hit = grid.hits(P0, P1)
+    assert hit.any()  # the test exercises rejections
+    assert np.all(scene.min_segment_clearance(P0[hit], P1[hit]) < margin)
+
+
+def test_chunked_clearance_equals_one_batch(scene, monkeypatch):
+    rng = np.random.default_rng(RNG_SEED)
+    A, B = rng.uniform(-10, 10, (200, 3)), rng.uniform(-10, 10, (200, 3))
+    whole, t_whole, n_whole = scene.segment_clearance(A, B, details=True)
+    monkeypatch.setattr(scene_module, "CHUNK_BYTES", 5000)  # a handful of rows per chunk
+    assert scene._dense_rows() < 10
+    part, t_part, n_part = scene.segment_clearance(A, B, details=True)
+    np.testing.assert_array_equal(part, whole)
+    np.testing.assert_array_equal(t_part, t_whole)
+    np.testing.assert_array_equal(n_part, n_whole)
+
+
+def test_segments_clear_without_obstacles_and_points():
+    empty = Scene.create([[0] * 3, [1] * 3])
+    assert empty.segments_clear(np.zeros((3, 3)), np.ones((3, 3))).all()
+    assert np.isinf(empty.min_segment_clearance(np.zeros((2, 3)), np.ones((2, 3)))).all()
+    scene = random_scene(5, 30)
+    X = np.random.default_rng(0).uniform(-12, 12, (500, 3))
+    np.testing.assert_allclose(scene.pair_clearance(X, X, np.arange(500) % 30),
+                               scene.point_clearance(X)[np.arange(500), np.arange(500) % 30],
+                               atol=1e-12)
