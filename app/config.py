@@ -35,7 +35,7 @@ class Settings(BaseSettings):
         description="key every request that changes state must bear (Authorization: Bearer); "
         "prefer the environment variable: a flag shows in the process list")
     max_queued_jobs: int = Field(1000, ge=1, description="jobs waiting at once (503 beyond)")
-    max_body_bytes: int = Field(64 * 1024 * 1024, ge=1024,
+    max_body_bytes: int = Field(80 * 1024 * 1024, ge=1024,
                                 description="largest request body of any route, bytes")
     job_time_limit_s: float = Field(
         3600.0, ge=1, le=7 * 86_400,
@@ -57,6 +57,9 @@ class Settings(BaseSettings):
         "batches, plots)")
     max_waiting_computations: int = Field(
         32, ge=1, description="heavy requests that may wait for a compute worker (503 beyond)")
+    prebuild_collision: bool = Field(
+        True, description="build an imported robot's collision model right after its import "
+        "(in a compute worker; stored with the robot) rather than at its first collision query")
     allowed_origins: str | None = Field(
         None,
         description="comma-separated origins of the pages that may open the 3D viewer, e.g. "

@@ -43,11 +43,17 @@ ROUTE_BODY_CAPS: dict[str, int] = {
     "/jobs": 4 * MiB,
     "/robots": 256 * 1024,
     "/robots/{robot_id}/drill-ik": 256 * 1024,
+    # An archive of a URDF with its meshes, and its SRDF (see kinematics.urdf_import).
+    "/robots/import": 72 * MiB,
+    # A scene with a scanned point cloud or MoveIt meshes inline.
+    "/scenes": 24 * MiB,
+    "/meshes": 40 * MiB,
+    "/robots/{robot_id}/collision": 24 * MiB,
 }
 #: Body cap of every other route: single configurations, single poses, small objects.
 DEFAULT_BODY_CAP = 256 * 1024
 #: Routes that take ``multipart/form-data`` (files) besides JSON.
-FILE_ROUTES: frozenset[str] = frozenset()
+FILE_ROUTES: frozenset[str] = frozenset({"/robots/import", "/meshes"})
 
 #: Names of this machine that a browser can only use for a service on this machine.
 LOOPBACK_HOSTS = ("localhost", "127.0.0.1", "::1")
@@ -110,7 +116,9 @@ class RequestGuard:
     def cap_for(self, path: str) -> tuple[int, str | None]:
         """The body cap of ``path`` and its route template (None if no route matches)."""
         if self._routes is None:
-            self._routes = [(_template_regex(t), t) for t in self._templates()]
+            # Static paths first: '/robots/import' is not '/robots/{robot_id}'.
+            templates = sorted(set(self._templates()), key=lambda t: t.count("{"))
+            self._routes = [(_template_regex(t), t) for t in templates]
         for regex, template in self._routes:
             if regex.match(path):
                 return min(ROUTE_BODY_CAPS.get(template, DEFAULT_BODY_CAP),

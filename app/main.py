@@ -15,12 +15,14 @@ from kinematics.errors import FieldError
 from . import __version__
 from .api.deps import require_api_key
 from .api.routes import (
+    collision,
     cylinders,
     health,
     jobs,
     kinematics,
     rigs,
     robots,
+    scenes,
     trajectories,
     viewer,
 )
@@ -30,6 +32,7 @@ from .config import Settings
 from .jobs.manager import JobManager
 from .limits import RequestGuard, body_caps, host_allow_list
 from .registry import RobotRegistry
+from .scenes import SceneRegistry
 from .store import Store, StoreError
 
 __all__ = ["create_app", "app"]  # noqa: F822 (``app`` is built lazily by __getattr__)
@@ -100,6 +103,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         # The job backend (threads, worker processes, a cluster client) lives as long as the
         # served application, not as long as the object: building an app starts nothing.
         api.state.jobs.start()
+        # Compiled kinematics kernels load (or, on a new machine, compile) in the background;
+        # until then calls take the numpy path, with the same answers.
+        from kinematics.fast import start_warm_up
+
+        start_warm_up()
         try:
             yield
         finally:
@@ -111,9 +119,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.state.settings = settings
     api.state.store = Store.in_data_dir(settings.data_dir)
     api.state.registry = RobotRegistry(api.state.store)
+    api.state.scenes = SceneRegistry(api.state.store)
+    api.state.collision_builds = {}  # robot id -> the build of its collision model in flight
     api.state.jobs = JobManager(api.state.store, api.state.registry, settings.jobs_backend,
                                 settings.workers, settings.max_queued_jobs,
                                 time_limit_s=settings.job_time_limit_s)
+    api.state.jobs.scenes = api.state.scenes
     api.state.viewer = None
     api.state.compute = ComputePool(settings.compute_workers, settings.max_waiting_computations)
     guarded = [Depends(require_api_key)]
@@ -122,9 +133,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.include_router(robots.write_router, dependencies=guarded)
     api.include_router(rigs.router)
     api.include_router(kinematics.router)
+    api.include_router(collision.router)
     api.include_router(cylinders.router)
     api.include_router(trajectories.router)
     api.include_router(jobs.router)
+    api.include_router(scenes.router)
+    api.include_router(scenes.write_router, dependencies=guarded)
     api.include_router(viewer.router, dependencies=guarded)
 
     @api.exception_handler(StarletteHTTPException)

@@ -1,10 +1,13 @@
-"""Where the service finds robot models by id: the built-ins and the custom robots."""
+"""Where the service finds robot models by id: the built-ins, the custom robots and the robots
+imported from URDF (with their links, geometry and meshes), and each robot's collision model."""
 
 from __future__ import annotations
 
 import json
 import logging
 import threading
+import uuid
+from typing import Any
 
 from kinematics.library import builtin_models
 from kinematics.model import RobotModel
@@ -15,6 +18,22 @@ from .store import DuplicateError, Store, StoreError
 __all__ = ["RobotRegistry", "RobotConflictError", "ReadOnlyRobotError"]
 
 log = logging.getLogger(__name__)
+
+
+#: Key of an imported robot's built collision model among its stored files (mesh keys have
+#: no dot, so it cannot clash with one).
+COLLISION_FILE = "collision.model"
+
+
+def build_collision(robot: Any) -> bytes:
+    """Build the collision model of an imported robot (``ImportedRobot``) or of a
+    ``RobotModel`` and answer it as bytes (``RobotCollisionModel.to_bytes``); runs in a
+    compute worker for imported robots (it takes seconds)."""
+    from planning.collision import RobotCollisionModel
+
+    cm = (RobotCollisionModel.from_model(robot) if isinstance(robot, RobotModel)
+          else RobotCollisionModel.from_imported(robot))
+    return cm.to_bytes()
 
 
 class RobotConflictError(ValueError):
@@ -48,15 +67,23 @@ class RobotRegistry:
         self._store = store
         self._lock = threading.Lock()
         self._generation = store.generation if store is not None else 0
+        # Imported robots: the description JSON of each (meshes are read from the store on
+        # first use and kept in ``_imported``; ``_collision`` caches collision models).
+        self._descriptions: dict[str, dict] = {}
+        self._imported: dict[str, Any] = {}
+        self._collision: dict[str, Any] = {}
         self._custom: dict[str, RobotModel] = self._load() if store is not None else {}
 
     def _load(self) -> dict[str, RobotModel]:
         """Every stored robot that still parses; a bad row is logged and skipped."""
         assert self._store is not None
         custom: dict[str, RobotModel] = {}
+        descriptions: dict[str, dict] = {}
         for row in self._store.list_robots():
             try:
                 model = RobotModel.from_dict(json.loads(row.model_json))
+                description = (json.loads(row.description_json)
+                               if row.description_json is not None else None)
             except Exception as exc:  # any bad row (bad JSON, invalid model): keep starting
                 log.error("skipping stored robot '%s': %s", row.id, exc)
                 continue
@@ -65,6 +92,11 @@ class RobotRegistry:
                           model.id)
                 continue
             custom[row.id] = model
+            if description is not None:
+                descriptions[row.id] = description
+        self._descriptions = descriptions
+        self._imported = {}
+        self._collision = {}
         return custom
 
     def _current(self) -> dict[str, RobotModel]:
@@ -106,22 +138,116 @@ class RobotRegistry:
 
     def add(self, model: RobotModel) -> None:
         """Store and serve a custom robot; ``RobotConflictError`` if its id is taken."""
+        self._add(model)
+
+    def add_imported(self, robot: Any, mesh_files: dict[str, bytes]) -> None:
+        """Store and serve a robot imported from URDF (``kinematics.urdf_import``), its
+        description and mesh files in one transaction; ``RobotConflictError`` if its id is
+        taken."""
+        self._add(robot.model, robot, mesh_files)
+
+    def _add(self, model: RobotModel, robot: Any = None,
+             mesh_files: dict[str, bytes] | None = None) -> None:
         if model.id in self._builtin:
             raise RobotConflictError(model.id, f"'{model.id}' is a built-in robot id")
         # allow_nan=False: a model whose extra fields hold NaN could not be served as JSON.
         text = json.dumps(model.to_dict(), allow_nan=False)
+        description = robot.to_dict() if robot is not None else None
         self._current()
         with self._lock:
             if model.id in self._custom:
                 raise RobotConflictError(model.id, f"robot id '{model.id}' is taken")
             if self._store is not None:
                 try:
-                    self._store.put_robot(model.id, text)
+                    self._store.put_robot(
+                        model.id, text, meshes=mesh_files,
+                        description_json=None if description is None
+                        else json.dumps(description, allow_nan=False))
                 except DuplicateError:  # e.g. a stored row that no longer parses
                     raise RobotConflictError(
                         model.id, f"robot id '{model.id}' is taken in the store"
                     ) from None
+            if robot is not None:
+                self._descriptions = {**self._descriptions, model.id: description}
+                self._imported = {**self._imported, model.id: robot}
             self._custom = {**self._custom, model.id: model}
+
+    def imported(self, robot_id: str) -> Any | None:
+        """The imported robot ``robot_id`` (``kinematics.urdf_import.ImportedRobot``: links,
+        geometry, meshes), None for built-in and model-JSON robots; ``KeyError`` if unknown."""
+        model = self.get(robot_id)
+        robot = self._imported.get(robot_id)
+        if robot is not None and robot.model is model:
+            return robot
+        description = self._descriptions.get(robot_id)
+        if description is None:
+            return None
+        from kinematics.urdf_import import ImportedRobot, mesh_from_bytes
+
+        files = self._store.robot_meshes(robot_id) if self._store is not None else {}
+        robot = ImportedRobot.from_dict(description, {k: mesh_from_bytes(v)
+                                                      for k, v in files.items()
+                                                      if k != COLLISION_FILE})
+        with self._lock:
+            self._imported = {**self._imported, robot_id: robot}
+        return robot
+
+    def collision_model(self, robot_id: str) -> Any:
+        """The robot's collision model (``planning.collision.RobotCollisionModel``): from the
+        URDF's collision geometry for imported robots, link capsules for the others; built
+        once and kept (an imported robot's in the store too). ``KeyError`` if unknown."""
+        return self.collision_entry(robot_id)[0]
+
+    def collision_entry(self, robot_id: str) -> tuple[Any, str]:
+        """``(collision model, token)``: the token names this build of the model, so a worker
+        process may keep what it derived from it (exact geometry) between requests. Builds
+        the model here when it is neither kept nor stored (seconds for an imported robot:
+        ``build_collision`` does it in a worker process instead)."""
+        entry = self.stored_collision(robot_id)
+        if entry is not None:
+            return entry
+        robot = self.imported(robot_id)
+        return self.keep_collision(robot_id, build_collision(robot or self.get(robot_id)))
+
+    def stored_collision(self, robot_id: str) -> tuple[Any, str] | None:
+        """The kept or stored collision model and its token; None when it must be built.
+        ``KeyError`` if the robot is unknown."""
+        model = self.get(robot_id)
+        cached = self._collision.get(robot_id)
+        if cached is not None and cached[0] is model:
+            return cached[1], cached[2]
+        robot = self.imported(robot_id)
+        if robot is None:  # capsules: built in milliseconds, never stored
+            return self.keep_collision(robot_id, build_collision(model))
+        data = self._store.robot_file(robot_id, COLLISION_FILE) if self._store else None
+        if data is None:
+            return None
+        from planning.collision import RobotCollisionModel
+
+        try:
+            cm = RobotCollisionModel.from_bytes(data, robot)
+        except ValueError as exc:  # another format or other geometry: build it again
+            log.warning("stored collision model of '%s' not used: %s", robot_id, exc)
+            return None
+        return self._keep(robot_id, model, cm)
+
+    def keep_collision(self, robot_id: str, data: bytes) -> tuple[Any, str]:
+        """Keep (and, for an imported robot, store) a collision model built by
+        ``build_collision``; answers it with its token."""
+        from planning.collision import RobotCollisionModel
+
+        model = self.get(robot_id)
+        robot = self.imported(robot_id)
+        cm = RobotCollisionModel.from_bytes(data, robot or model)
+        if robot is not None and self._store is not None:
+            self._store.put_robot_file(robot_id, COLLISION_FILE, data)
+        return self._keep(robot_id, model, cm)
+
+    def _keep(self, robot_id: str, model: RobotModel, cm: Any) -> tuple[Any, str]:
+        token = f"{robot_id}:{uuid.uuid4().hex}"
+        with self._lock:
+            self._collision = {**self._collision, robot_id: (model, cm, token)}
+        return cm, token
 
     def remove(self, robot_id: str) -> None:
         """Delete a custom robot: ``ReadOnlyRobotError`` for a built-in, ``KeyError`` if
@@ -134,3 +260,6 @@ class RobotRegistry:
             if robot_id not in self._custom and not deleted:
                 raise KeyError(robot_id)
             self._custom = {k: v for k, v in self._custom.items() if k != robot_id}
+            self._descriptions = {k: v for k, v in self._descriptions.items() if k != robot_id}
+            self._imported = {k: v for k, v in self._imported.items() if k != robot_id}
+            self._collision = {k: v for k, v in self._collision.items() if k != robot_id}

@@ -1,4 +1,5 @@
-"""The service's SQLite store (``<data_dir>/kinoplan.sqlite3``): custom robots and jobs.
+"""The service's SQLite store (``<data_dir>/kinoplan.sqlite3``): custom and imported robots
+(with their mesh files), scenes, uploaded meshes and jobs.
 
 One file holds every table; ``PRAGMA user_version`` records which of ``_MIGRATIONS`` have
 run, so a later table (jobs) is one more entry there. The store is called from FastAPI's
@@ -80,6 +81,26 @@ _MIGRATIONS: tuple[str, ...] = (
     ALTER TABLE jobs ADD COLUMN time_limit_s REAL;
     CREATE INDEX IF NOT EXISTS jobs_kind ON jobs (kind, seq);
     """,
+    """
+    ALTER TABLE robots ADD COLUMN description_json TEXT;
+    CREATE TABLE IF NOT EXISTS robot_meshes (
+        robot_id TEXT NOT NULL,
+        key TEXT NOT NULL,
+        data BLOB NOT NULL,
+        PRIMARY KEY (robot_id, key)
+    );
+    CREATE TABLE IF NOT EXISTS scenes (
+        id TEXT PRIMARY KEY,
+        scene_json TEXT NOT NULL,
+        created TEXT NOT NULL
+    );
+    CREATE TABLE IF NOT EXISTS meshes (
+        id TEXT PRIMARY KEY,
+        info_json TEXT NOT NULL,
+        data BLOB NOT NULL,
+        created TEXT NOT NULL
+    );
+    """,
 )
 
 
@@ -159,6 +180,27 @@ class StoredRobot:
 
     id: str
     model_json: str
+    created: str
+    #: An imported robot's description (links, geometry, collision rules) as JSON text;
+    #: None for robots given as a model JSON.
+    description_json: str | None = None
+
+
+@dataclass(frozen=True)
+class StoredScene:
+    """One row of ``scenes``: the scene JSON text and its UTC ISO creation time."""
+
+    id: str
+    scene_json: str
+    created: str
+
+
+@dataclass(frozen=True)
+class StoredMesh:
+    """One row of ``meshes`` without its data: ``info_json`` (name, counts, bounds)."""
+
+    id: str
+    info_json: str
     created: str
 
 
@@ -397,24 +439,33 @@ class Store:
         return None
 
     # ---- robots -------------------------------------------------------------------------
-    def put_robot(self, robot_id: str, model_json: str) -> StoredRobot:
-        """Insert a robot; ``DuplicateError`` if ``robot_id`` is already stored."""
+    def put_robot(self, robot_id: str, model_json: str, *, description_json: str | None = None,
+                  meshes: dict[str, bytes] | None = None) -> StoredRobot:
+        """Insert a robot (with an imported robot's description and mesh files, all in one
+        transaction); ``DuplicateError`` if ``robot_id`` is already stored."""
         created = now_iso()
         try:
             with self._connect() as conn:
                 conn.execute(
-                    "INSERT INTO robots (id, model_json, created) VALUES (?, ?, ?)",
-                    (robot_id, model_json, created),
+                    "INSERT INTO robots (id, model_json, created, description_json) "
+                    "VALUES (?, ?, ?, ?)",
+                    (robot_id, model_json, created, description_json),
+                )
+                conn.execute("DELETE FROM robot_meshes WHERE robot_id = ?", (robot_id,))
+                conn.executemany(
+                    "INSERT INTO robot_meshes (robot_id, key, data) VALUES (?, ?, ?)",
+                    [(robot_id, key, data) for key, data in (meshes or {}).items()],
                 )
         except sqlite3.IntegrityError:
             raise DuplicateError(robot_id) from None
-        return StoredRobot(robot_id, model_json, created)
+        return StoredRobot(robot_id, model_json, created, description_json)
 
     def get_robot(self, robot_id: str) -> StoredRobot:
         """The stored robot ``robot_id``; ``KeyError`` if there is none."""
         with self._connect() as conn:
             row = conn.execute(
-                "SELECT id, model_json, created FROM robots WHERE id = ?", (robot_id,)
+                "SELECT id, model_json, created, description_json FROM robots WHERE id = ?",
+                (robot_id,),
             ).fetchone()
         if row is None:
             raise KeyError(robot_id)
@@ -424,14 +475,99 @@ class Store:
         """Every stored robot, oldest first."""
         with self._connect() as conn:
             rows = conn.execute(
-                "SELECT id, model_json, created FROM robots ORDER BY rowid"
+                "SELECT id, model_json, created, description_json FROM robots ORDER BY rowid"
             ).fetchall()
         return [StoredRobot(*row) for row in rows]
 
+    def robot_meshes(self, robot_id: str) -> dict[str, bytes]:
+        """The mesh files stored with an imported robot, by key (empty for other robots)."""
+        with self._connect() as conn:
+            rows = conn.execute(
+                "SELECT key, data FROM robot_meshes WHERE robot_id = ? ORDER BY key",
+                (robot_id,),
+            ).fetchall()
+        return {key: bytes(data) for key, data in rows}
+
+    def put_robot_file(self, robot_id: str, key: str, data: bytes) -> bool:
+        """Store (or replace) a file kept with robot ``robot_id`` (e.g. its built collision
+        model); False, and nothing written, when there is no such robot."""
+        with self._connect() as conn:
+            if conn.execute("SELECT 1 FROM robots WHERE id = ?", (robot_id,)).fetchone() is None:
+                return False
+            conn.execute("INSERT OR REPLACE INTO robot_meshes (robot_id, key, data) "
+                         "VALUES (?, ?, ?)", (robot_id, key, data))
+        return True
+
+    def robot_file(self, robot_id: str, key: str) -> bytes | None:
+        """One file kept with robot ``robot_id``; None if there is none."""
+        with self._connect() as conn:
+            row = conn.execute("SELECT data FROM robot_meshes WHERE robot_id = ? AND key = ?",
+                               (robot_id, key)).fetchone()
+        return None if row is None else bytes(row[0])
+
     def delete_robot(self, robot_id: str) -> bool:
-        """Delete ``robot_id``; whether there was such a row."""
+        """Delete ``robot_id`` and its mesh files; whether there was such a row."""
         with self._connect() as conn:
             cur = conn.execute("DELETE FROM robots WHERE id = ?", (robot_id,))
+            conn.execute("DELETE FROM robot_meshes WHERE robot_id = ?", (robot_id,))
+        return cur.rowcount > 0
+
+    # ---- scenes and meshes ----------------------------------------------------------------
+    def put_scene(self, scene_id: str, scene_json: str) -> StoredScene:
+        """Insert a scene; ``DuplicateError`` if ``scene_id`` is already stored."""
+        created = now_iso()
+        try:
+            with self._connect() as conn:
+                conn.execute("INSERT INTO scenes (id, scene_json, created) VALUES (?, ?, ?)",
+                             (scene_id, scene_json, created))
+        except sqlite3.IntegrityError:
+            raise DuplicateError(scene_id) from None
+        return StoredScene(scene_id, scene_json, created)
+
+    def list_scenes(self) -> list[StoredScene]:
+        """Every stored scene, oldest first."""
+        with self._connect() as conn:
+            rows = conn.execute(
+                "SELECT id, scene_json, created FROM scenes ORDER BY rowid").fetchall()
+        return [StoredScene(*row) for row in rows]
+
+    def delete_scene(self, scene_id: str) -> bool:
+        """Delete ``scene_id``; whether there was such a row."""
+        with self._connect() as conn:
+            cur = conn.execute("DELETE FROM scenes WHERE id = ?", (scene_id,))
+        return cur.rowcount > 0
+
+    def put_mesh(self, mesh_id: str, info_json: str, data: bytes) -> StoredMesh:
+        """Insert a mesh file; ``DuplicateError`` if ``mesh_id`` is already stored."""
+        created = now_iso()
+        try:
+            with self._connect() as conn:
+                conn.execute(
+                    "INSERT INTO meshes (id, info_json, data, created) VALUES (?, ?, ?, ?)",
+                    (mesh_id, info_json, data, created))
+        except sqlite3.IntegrityError:
+            raise DuplicateError(mesh_id) from None
+        return StoredMesh(mesh_id, info_json, created)
+
+    def list_meshes(self) -> list[StoredMesh]:
+        """Every stored mesh (without its data), oldest first."""
+        with self._connect() as conn:
+            rows = conn.execute(
+                "SELECT id, info_json, created FROM meshes ORDER BY rowid").fetchall()
+        return [StoredMesh(*row) for row in rows]
+
+    def mesh_data(self, mesh_id: str) -> bytes:
+        """The stored data of mesh ``mesh_id``; ``KeyError`` if there is none."""
+        with self._connect() as conn:
+            row = conn.execute("SELECT data FROM meshes WHERE id = ?", (mesh_id,)).fetchone()
+        if row is None:
+            raise KeyError(mesh_id)
+        return bytes(row[0])
+
+    def delete_mesh(self, mesh_id: str) -> bool:
+        """Delete ``mesh_id``; whether there was such a row."""
+        with self._connect() as conn:
+            cur = conn.execute("DELETE FROM meshes WHERE id = ?", (mesh_id,))
         return cur.rowcount > 0
 
     # ---- jobs ---------------------------------------------------------------------------

@@ -43,8 +43,13 @@ DEFAULT_SAMPLES = 30_000
 MIN_GUI_SAMPLES = 100
 MAX_GUI_SAMPLES = MAX_SAMPLES
 
+COLLISION_HINT = ("Show the balls the collision checker uses for the robot: sphere trees on an "
+                  "imported robot's collision geometry, balls along a D-H robot's link "
+                  "capsules")
+NO_SCENE = "No scene shown: `POST /viewer/show {\"scene\": id}`."
+
 HELP = ("Pick a robot, move the joints, or drag the gizmo at the tool (IK). "
-        "`POST /viewer/show` shows robots and finished jobs here.")
+        "`POST /viewer/show` shows robots, finished jobs and scenes here.")
 
 
 def to_display(model: RobotModel, q) -> list[float]:
@@ -86,6 +91,9 @@ class ControlPanel:
                                       initial_value=current, order=1)
         self.arm = gui.add_dropdown("Arm", options=("-",), visible=False, order=2,
                                     hint="The arm of the rig that the sliders and IK drive")
+        self.collision = gui.add_checkbox("Collision model", False, order=2.5,
+                                          hint=COLLISION_HINT)
+        self.collision_info = gui.add_markdown("", order=2.6, visible=False)
         self._joints_folder: Any = None
         self.sliders: list[Any] = []
         with gui.add_folder("Hydraulic cylinders", order=4, visible=False) as folder:
@@ -106,6 +114,8 @@ class ControlPanel:
             self.play = gui.add_button("Play", disabled=True)
             self.speed = gui.add_slider("Speed ×", min=0.1, max=10.0, step=0.1,
                                         initial_value=1.0)
+        with gui.add_folder("Scene", order=8):
+            self.scene = gui.add_markdown(NO_SCENE)
 
     # joints -----------------------------------------------------------------------------
     def set_joints(self, model: RobotModel, q, on_change: Callable[[int, Any], None]) -> None:
@@ -137,6 +147,12 @@ class ControlPanel:
     def slider_q(self, model: RobotModel) -> np.ndarray:
         """The configuration the sliders show ``(dof,)``."""
         return from_display(model, [s.value for s in self.sliders])
+
+    def show_collision(self, text: str) -> None:
+        """The line under the collision checkbox (hidden when empty)."""
+        self.collision_info.visible = bool(text)
+        if self.collision_info.content != text:
+            self.collision_info.content = text
 
     def show_cylinders(self, cylinders: Sequence[CylinderDrawing]) -> None:
         self.cylinders_folder.visible = bool(cylinders)

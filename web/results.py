@@ -167,6 +167,36 @@ class Plan:
         groups = (self.clouds, self.polylines, self.spheres, self.boxes, self.capsules)
         return [item.name for group in groups for item in group]
 
+    def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """World bounds ``(lower (3,), upper (3,))`` mm of what the plan draws (its arms'
+        motions not included); None when it draws nothing."""
+        lows, highs = [], []
+
+        def add(lo, hi) -> None:
+            lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+            if lo.size and np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)):
+                lows.append(lo)
+                highs.append(hi)
+
+        for group in (self.clouds, self.polylines):
+            for item in group:
+                P = np.asarray(item.points, dtype=float).reshape(-1, 3)
+                if len(P):
+                    add(P.min(axis=0), P.max(axis=0))
+        for s in self.spheres:
+            C = np.asarray(s.centers, dtype=float).reshape(-1, 3)
+            if len(C):
+                r = np.asarray(s.radii, dtype=float).reshape(-1, 1)
+                add((C - r).min(axis=0), (C + r).max(axis=0))
+        for b in self.boxes:
+            add(b.lower, b.upper)
+        for c in self.capsules:
+            ends = np.array([c.a, c.b], dtype=float)
+            add(ends.min(axis=0) - c.radius, ends.max(axis=0) + c.radius)
+        if not lows:
+            return None
+        return np.min(lows, axis=0), np.max(highs, axis=0)
+
 
 # ---- drawers ------------------------------------------------------------------------------
 ModelLookup = Callable[[str], RobotModel]

@@ -355,6 +355,16 @@ class RobotNodes:
                 self._move(f"{base}/{bar}", p0, p1)
         return d
 
+    def bounds_mm(self) -> tuple[np.ndarray, np.ndarray]:
+        """World bounds ``(lower (3,), upper (3,))`` mm of the arm as drawn: its frame
+        origins, joint spheres, cylinder pins and the base disc, padded by their radii."""
+        d = self.drawing
+        pts = [d.frames[:, :3, 3], d.joint_points]
+        pts += [np.stack([c.barrel_pin, c.rod_pin]) for c in d.cylinders]
+        P = np.vstack(pts)
+        pad = max(3.0 * self.style.link_radius, self.style.joint_radius) / MM_TO_M
+        return P.min(axis=0) - pad, P.max(axis=0) + pad
+
     def remove(self) -> None:
         """Remove the arm's nodes (the root takes its children with it)."""
         self.handles[self.root].remove()

@@ -16,7 +16,16 @@ What a browser gets (http://host:port):
   the API's synchronous cap; jobs are submitted to the same manager, with the same checks, as
   ``POST /jobs``);
 * finished jobs shown by ``POST /viewer/show {"job": id}`` (``web.results``), with a time
-  slider and play/pause when the plan moves arms.
+  slider and play/pause when the plan moves arms;
+* robots imported from URDF drawn with their own meshes (``web.meshes``), and a "Collision
+  model" checkbox showing the balls the collision checker uses, following the arm
+  (``web.collision``);
+* a stored scene shown by ``POST /viewer/show {"scene": id}`` (``web.site``: boxes, spheres,
+  cylinders, capsules, meshes, point clouds under ``/scene/<id>``), until another scene
+  replaces it or ``{"scene": null}`` clears it.
+
+The camera frames everything shown (robot, plan, scene; ``web.camera``) whenever the robot,
+the plan or the scene changes, keeping it clear of the control panel.
 
 Access: ``Viewer.start`` runs viser on an internal loopback port and serves the public port
 through ``web.gate``: with an API key the page and its websocket need ``/?key=<key>`` once (then
@@ -34,6 +43,7 @@ import contextlib
 import io
 import json
 import logging
+import math
 import threading
 import time
 from collections.abc import Sequence
@@ -47,8 +57,11 @@ from kinematics.ik import solve_ik
 from kinematics.ik.result import IKResult
 from kinematics.model import RobotModel
 
+from .camera import View, frame_bounds, union_bounds
+from .collision import CollisionSpheres
 from .gate import Gate, lock_websockets_server, new_secret
-from .gui import MAX_GUI_SAMPLES, MIN_GUI_SAMPLES, ControlPanel
+from .gui import MAX_GUI_SAMPLES, MIN_GUI_SAMPLES, NO_SCENE, ControlPanel
+from .meshes import ImportedRobotNodes, robot_nodes
 from .results import DRAWERS, Plan, drawable, plan_from_result
 from .scene import (
     MM_TO_M,
@@ -58,8 +71,10 @@ from .scene import (
     reach_m,
     wxyz_from_matrix,
 )
+from .site import SCENE_ROOT, SiteNodes, draw_site
 
-__all__ = ["Viewer", "JobNotReady", "MM_TO_M", "wxyz_from_matrix", "ROBOT_ROOT", "PLAN_ROOT"]
+__all__ = ["Viewer", "JobNotReady", "MM_TO_M", "wxyz_from_matrix", "ROBOT_ROOT", "PLAN_ROOT",
+           "SCENE_ROOT"]
 
 log = logging.getLogger(__name__)
 
@@ -86,8 +101,10 @@ class JobNotReady(RuntimeError):
 class ServiceState(Protocol):
     """What the viewer needs of the application's state."""
 
-    registry: Any  # app.registry.RobotRegistry: ids(), get(id), rigs
+    registry: Any  # app.registry.RobotRegistry: ids(), get(id), rigs, imported(id),
+    #               collision_model(id)
     jobs: Any  # app.jobs.manager.JobManager: submit(kind, params), get(id), result(id)
+    scenes: Any  # app.scenes.SceneRegistry: get(id) (the scene's validated objects)
 
 
 @dataclass
@@ -97,7 +114,8 @@ class _Arm:
     key: str
     model: RobotModel
     q: np.ndarray
-    nodes: RobotNodes
+    nodes: RobotNodes | ImportedRobotNodes
+    collision: CollisionSpheres | None = None
 
 
 class Viewer:
@@ -108,6 +126,7 @@ class Viewer:
         self.server = server
         self.registry = state.registry
         self.jobs = state.jobs
+        self.scenes = getattr(state, "scenes", None)
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._key: str = ""
@@ -125,11 +144,20 @@ class Viewer:
         self.gate: Gate | None = None
         self._options: tuple[str, ...] = ()
         self.current: dict | None = None
+        self._site: SiteNodes | None = None
+        self._collision_on = False
+        self._unframed: set[int] = set()  # clients whose canvas size is not known yet
 
         scene = server.scene
         scene.set_up_direction("+z")
         if not environment_map:
+            # Without the image-based light, a sky light and a key light from the camera's
+            # side keep the faces that look at the default view lit.
             scene.configure_environment_map(None)
+            scene.add_light_hemisphere("/lights/sky", sky_color=(255, 255, 255),
+                                       ground_color=(90, 90, 100), intensity=1.2)
+            scene.add_light_directional("/lights/key", intensity=1.6,
+                                        position=(2.0, -4.0, 5.0))
         self._grid = scene.add_grid("/ground", width=4.0, height=4.0, cell_size=0.25,
                                     section_size=1.0)
         self._options = self._robot_options()
@@ -139,6 +167,7 @@ class Viewer:
         self._wire()
         self.select(first)
         server.on_client_connect(self._on_connect)
+        server.on_client_disconnect(lambda client: self._unframed.discard(client.client_id))
         self._threads = [
             threading.Thread(target=self._tick_loop, name="viewer-tick", daemon=True),
             threading.Thread(target=self._ik_loop, name="viewer-ik", daemon=True),
@@ -221,6 +250,8 @@ class Viewer:
                 raise ValueError(f"expected {model.dof} finite joint values for robot "
                                  f"'{model.id}', got {list(np.shape(given))}")
             qs[arm] = qa
+        if self._collision_on:
+            self._build_collision_models(models.values())
         with self._lock, self.server.atomic():
             if not keep_plan:
                 self._clear_plan()
@@ -231,9 +262,11 @@ class Viewer:
             self._arms = {}
             for arm, model in models.items():
                 root = f"{ROBOT_ROOT}/{key}" + (f"/{arm}" if arm else "")
-                self._arms[arm] = _Arm(arm, model, qs[arm],
-                                       RobotNodes(self.server.scene, root, model, qs[arm]))
+                nodes = robot_nodes(self.server.scene, root, model, qs[arm],
+                                    self._imported(model))
+                self._arms[arm] = _Arm(arm, model, qs[arm], nodes)
             self._active = next(iter(self._arms))
+            self._draw_collision()
             self.gui.robot.value = key
             self.gui.arm.options = tuple(self._arms) if len(self._arms) > 1 else ("-",)
             self.gui.arm.visible = len(self._arms) > 1
@@ -243,6 +276,18 @@ class Viewer:
             self._frame_cameras()
             self._remember()
             return self.current
+
+    def _imported(self, model: RobotModel) -> Any:
+        """The ``ImportedRobot`` behind ``model`` (None: not imported from URDF)."""
+        lookup = getattr(self.registry, "imported", None)
+        if lookup is None:
+            return None
+        try:
+            robot = lookup(model.id)
+        except KeyError:
+            return None
+        # Rebuilt from its stored description, its model is an equal copy of ``model``.
+        return robot if robot is not None and robot.model.dof == model.dof else None
 
     def _show_active(self) -> None:
         """Sliders, cylinder table and gizmo for the active arm (under the lock)."""
@@ -267,6 +312,8 @@ class Viewer:
         if self._plan is not None:
             self.current["job"] = self._plan.job
             self.current["kind"] = self._plan.kind
+        if self._site is not None:
+            self.current["scene"] = self._site.scene_id
 
     def set_q(self, q, arm: str | None = None, *, source: str = "api") -> RobotDrawing:
         """Move an arm (default: the active one) to ``q (dof,)``. ``source`` says who asked:
@@ -276,6 +323,8 @@ class Viewer:
             a = self._arms[key]
             a.q = np.asarray(q, dtype=float).copy()
             drawing = a.nodes.update(a.q)
+            if a.collision is not None:
+                a.collision.update(a.q)
             if key == self._active:
                 if source != "slider":
                     self.gui.show_q(a.model, a.q)
@@ -396,6 +445,12 @@ class Viewer:
         def _(event: Any) -> None:
             self.toggle_play()
 
+        @g.collision.on_update
+        def _(event: Any) -> None:
+            if event.client is None:
+                return
+            self.set_collision(bool(g.collision.value))
+
         self.gizmo.on_update(self._on_gizmo)
 
     def _on_slider(self, i: int, event: Any) -> None:
@@ -411,27 +466,152 @@ class Viewer:
     def _on_connect(self, client: Any) -> None:
         with self._lock:
             position, look_at = self._camera_pose()
+            # Framed again at its first camera report, which tells the canvas size.
+            self._unframed.add(client.client_id)
         client.camera.up_direction = (0.0, 0.0, 1.0)
         client.camera.position = position
         client.camera.look_at = look_at
 
-    def _camera_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        """A view of every drawn arm from the front left, above."""
-        pts = np.vstack([a.nodes.drawing.frames[:, :3, 3] for a in self._arms.values()])
-        pts = pts * MM_TO_M
-        centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
-        size = max(float(np.linalg.norm(np.ptp(pts, axis=0))), 0.5)
-        return centre + size * np.array([0.35, -0.8, 0.4]), centre
+        @client.camera.on_update
+        def _(camera: Any) -> None:
+            if client.client_id not in self._unframed:  # every later move: no lock taken
+                return
+            with self._lock:
+                if client.client_id not in self._unframed:
+                    return
+                view = _client_view(client)
+                if view is None:
+                    return
+                self._unframed.discard(client.client_id)
+                position, look_at = self._camera_pose(view)
+            camera.position = position
+            camera.look_at = look_at
+
+    # ---- camera -------------------------------------------------------------------------
+    def content_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """World bounds ``(lower (3,), upper (3,))`` mm of everything drawn: the arms (their
+        meshes for imported robots), their collision balls, the plan and the scene."""
+        with self._lock:
+            boxes = [a.nodes.bounds_mm() for a in self._arms.values()]
+            boxes += [a.collision.bounds_mm() for a in self._arms.values()
+                      if a.collision is not None]
+            if self._plan is not None:
+                boxes.append(self._plan.bounds())
+            if self._site is not None:
+                boxes.append(self._site.bounds)
+            found = union_bounds(boxes)
+            return found if found is not None else (np.zeros(3), np.zeros(3))
+
+    def _camera_pose(self, view: View | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Camera ``(position, look_at)`` (m) framing everything drawn (``web.camera``) on a
+        canvas ``view`` (default: an assumed one)."""
+        lo, hi = self.content_bounds()
+        return frame_bounds(lo * MM_TO_M, hi * MM_TO_M, view)
 
     def _frame_cameras(self) -> None:
+        """Point every browser's camera (and "reset view") at everything drawn, and size the
+        ground grid to it (under the lock)."""
         position, look_at = self._camera_pose()
         self.server.initial_camera.position = position
         self.server.initial_camera.look_at = look_at
-        size = float(np.linalg.norm(position - look_at))
-        self._grid.width = self._grid.height = float(max(4.0, 2.0 * round(size)))
+        lo, hi = self.content_bounds()
+        reach = float(np.abs(np.concatenate([lo[:2], hi[:2]])).max()) * MM_TO_M
+        self._grid.width = self._grid.height = float(max(4.0, 2.0 * math.ceil(reach) + 2.0))
         for client in self.server.get_clients().values():
+            view = _client_view(client)
+            if view is not None:
+                position, look_at = self._camera_pose(view)
             client.camera.position = position
             client.camera.look_at = look_at
+
+    # ---- collision model ----------------------------------------------------------------
+    def set_collision(self, on: bool) -> int:
+        """Show (or hide) the collision model's balls on every drawn arm; returns how many
+        balls are shown. An arm whose collision model cannot be built shows none, and the
+        panel says why."""
+        with self._lock:
+            self._collision_on = bool(on)
+            if self.gui.collision.value != self._collision_on:
+                self.gui.collision.value = self._collision_on
+            models = [a.model for a in self._arms.values()]
+            if on:
+                self.gui.show_collision("Building the collision model…")
+        if on:
+            self._build_collision_models(models)
+        with self._lock, self.server.atomic():
+            return self._draw_collision()
+
+    def _build_collision_models(self, models) -> None:
+        """Have the registry build (and keep) the collision models of ``models``, outside the
+        lock: an imported robot's sphere trees take seconds. Failures show when drawn."""
+        for model in models:
+            try:
+                self.registry.collision_model(model.id)
+            except Exception:  # noqa: BLE001 - reported by _draw_collision
+                pass
+
+    @property
+    def collision_nodes(self) -> list[str]:
+        """Node names of the collision balls shown (one node per arm)."""
+        with self._lock:
+            return [a.collision.name for a in self._arms.values() if a.collision is not None]
+
+    def _draw_collision(self) -> int:
+        """Add or remove the arms' collision balls as the checkbox says (under the lock)."""
+        notes, count = [], 0
+        for a in self._arms.values():
+            if a.collision is not None and not self._collision_on:
+                a.collision.remove()
+                a.collision = None
+            if self._collision_on and a.collision is None:
+                try:
+                    cm = self.registry.collision_model(a.model.id)
+                    a.collision = CollisionSpheres(self.server.scene,
+                                                   f"{a.nodes.root}/collision", cm, a.q)
+                except Exception as exc:  # e.g. a URDF without collision geometry
+                    log.info("no collision model for '%s': %s", a.model.id, exc)
+                    notes.append(f"`{a.model.id}`: {exc}")
+                    continue
+            if a.collision is not None:
+                count += a.collision.count
+        if self._collision_on:
+            text = f"{count} balls on {len(self._arms)} arm(s)" if len(self._arms) > 1 \
+                else f"{count} balls"
+            if notes:
+                text += "\n\n**No collision model** for " + "; ".join(notes)
+            self.gui.show_collision(text)
+        else:
+            self.gui.show_collision("")
+        return count
+
+    # ---- scenes -------------------------------------------------------------------------
+    def show_scene(self, scene_id: str | None) -> dict:
+        """Draw the stored scene ``scene_id`` under ``/scene/<id>``, replacing the scene
+        shown; None clears it. KeyError if the scene is unknown (nothing changes then)."""
+        objects = None
+        if scene_id is not None:
+            if self.scenes is None:
+                raise KeyError(scene_id)
+            objects = self.scenes.get(scene_id).objects
+        with self._lock, self.server.atomic():
+            if self._site is not None:
+                self._site.remove()
+                self._site = None
+            if objects is not None:
+                self._site = draw_site(self.server.scene, scene_id, objects)
+                n = len(self._site.objects)
+                self.gui.scene.content = f"**Scene** `{scene_id}`: {n} object(s)"
+            else:
+                self.gui.scene.content = NO_SCENE
+            self._frame_cameras()
+            self._remember()
+            return {**self.current, "scene_nodes": self.scene_nodes}
+
+    @property
+    def scene_nodes(self) -> list[str]:
+        """Node names of the scene's objects shown (in the scene's order)."""
+        with self._lock:
+            return self._site.names if self._site is not None else []
 
     def refresh_robots(self) -> None:
         """Compare the robot list with the registry; update the dropdown when it changed
@@ -566,6 +746,7 @@ class Viewer:
                 self._playing = False
                 if plan.motions:
                     self._apply_time(0.0)
+                self._frame_cameras()
             self._remember()
             return {**self.current, "nodes": sorted(self._plan_handles)}
 
@@ -651,6 +832,17 @@ def _sample_count(value: Any) -> int | None:
             and MIN_GUI_SAMPLES <= number <= MAX_GUI_SAMPLES):
         return None
     return int(number)
+
+
+def _client_view(client: Any) -> View | None:
+    """A browser's camera as ``(vertical fov rad, canvas width px, height px)``, None until
+    it has reported it."""
+    try:
+        camera = client.camera
+        view = (float(camera.fov), int(camera.image_width), int(camera.image_height))
+    except (AssertionError, AttributeError, ValueError):  # viser: nothing reported yet
+        return None
+    return view if view[0] > 0 and view[1] > 0 and view[2] > 0 else None
 
 
 def _matrix_from_wxyz(wxyz: np.ndarray) -> np.ndarray:

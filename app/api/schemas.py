@@ -197,10 +197,16 @@ class WorkspaceResponse(BaseModel):
 
 
 class ViewerShowRequest(Body):
+    """What the viewer shows: a robot (at ``q``) or a finished job, and/or a stored scene
+    (``"scene": null`` clears the scene shown)."""
+
     robot: str | None = Field(None, max_length=64, description="Robot id to show")
     q: JointVector | None = Field(None, description="Configuration; default mid-limits")
     job: str | None = Field(None, max_length=64,
                             description="A finished job whose result to show")
+    scene: str | None = Field(None, max_length=64, pattern=r"^[A-Za-z0-9_-]{1,64}$",
+                              description="A stored scene to show (replacing the one shown); "
+                              "null clears it")
 
 
 class JobRecordOut(BaseModel):

@@ -68,6 +68,10 @@ def make_backend(store: Store, jobs_backend: str, workers: int):
     raise ValueError(f"jobs_backend must be 'local' or 'dask://HOST:PORT', got {jobs_backend!r}")
 
 
+#: Job kinds whose ``scene`` may name a stored scene.
+SCENE_KINDS = ("path", "path_compare")
+
+
 class JobManager:
     """Jobs of one service. The backend is created and started by ``start`` (the service's
     lifespan), so building an app for a test starts no processes."""
@@ -83,6 +87,8 @@ class JobManager:
         self.max_queued = max_queued
         self.backend = None
         self._learned: dict[str, tuple[str, object]] = {}
+        #: The stored scenes (``app.scenes.SceneRegistry``) path jobs may name; None: none.
+        self.scenes: Any = None
 
     # ---- lifecycle ------------------------------------------------------------------------
     def start(self) -> None:
@@ -125,6 +131,8 @@ class JobManager:
             check_params(params, spec.max_params_bytes)
         except ParamsLimitError as exc:
             raise JobParamsError(exc.loc, exc.message, exc.status) from None
+        if kind in SCENE_KINDS:
+            params = self._stored_scene(params)
         try:
             checked = spec.load_params(params)
         except ValidationError as exc:
@@ -146,6 +154,29 @@ class JobManager:
         if self.backend is not None:
             self.backend.notify()
         return job
+
+    def _stored_scene(self, params: dict[str, Any]) -> dict[str, Any]:
+        """Params whose ``scene`` names a stored scene (``"scene": "id"`` or ``{"id": ...}``)
+        with that scene's obstacles filled in (``path_kinds.scene_params``)."""
+        scene = params.get("scene")
+        if isinstance(scene, str):
+            scene = {"id": scene}
+        if not isinstance(scene, dict) or not isinstance(scene.get("id"), str):
+            return params
+        if "obstacles" in scene:
+            raise JobParamsError(["params", "scene", "obstacles"], "give a stored scene's id "
+                                 "or obstacles, not both")
+        try:
+            stored = self.scenes.get(scene["id"]) if self.scenes is not None else None
+        except KeyError:
+            stored = None
+        if stored is None:
+            raise JobParamsError(["params", "scene", "id"], f"unknown scene '{scene['id']}'",
+                                 status=404)
+        from .path_kinds import scene_params
+
+        return {**params, "scene": scene_params(stored, scene,
+                                                [params.get("start"), params.get("goal")])}
 
     def get(self, job_id: str) -> JobRecord:
         return self.store.get_job(job_id)

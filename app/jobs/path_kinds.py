@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import (
     Field,
     PrivateAttr,
@@ -104,6 +105,9 @@ class ObstacleIn(StrictModel):
 
 
 class SceneIn(StrictModel):
+    id: str | None = Field(None, max_length=64, description="A stored scene (POST /scenes) "
+                           "whose objects become the obstacles (conservatively: see "
+                           "docs/API.md); the job records the obstacles it used")
     bounds: list[Vec3] = Field(min_length=2, max_length=2,
                                description="[[xmin, ymin, zmin], [xmax, ymax, zmax]] mm")
     obstacles: list[ObstacleIn] = Field(default_factory=list, max_length=MAX_OBSTACLES)
@@ -138,7 +142,22 @@ class ArmOptions(StrictModel):
         60.0, description="mm, one number or one per link")
     spacing: float = Field(10.0, ge=1, le=1e5, description="mm between IK samples")
     waypoint_spacing: float = Field(25.0, ge=1, le=1e6, description="mm between waypoints")
-    duration: float = Field(10.0, gt=0, le=86_400, description="s of the joint trajectory")
+    timing: Literal["optimal", "uniform"] = Field(
+        "optimal", description="'optimal': the fastest joint trajectory within the robot's "
+        "speed limits (and its cylinders' and pump's), acceleration and jerk; 'uniform': "
+        "the spline stretched to last duration")
+    duration: float = Field(10.0, gt=0, le=86_400, description="s of the joint trajectory "
+                            "with timing 'uniform'")
+    acceleration: (Annotated[float, Field(gt=0, le=1e6)]
+                   | Annotated[list[Annotated[float, Field(gt=0, le=1e6)]],
+                               Field(min_length=1, max_length=64)] | None) = Field(
+        None, description="Joint acceleration limits of 'optimal' timing, rad/s² or mm/s² "
+        "(one number or one per joint; default 1 rad/s², 500 mm/s²)")
+    jerk: (Annotated[float, Field(gt=0, le=1e8)]
+           | Annotated[list[Annotated[float, Field(gt=0, le=1e8)]],
+                       Field(min_length=1, max_length=64)] | None) = Field(
+        None, description="Joint jerk limits of 'optimal' timing, rad/s³ or mm/s³ (default "
+        "5 rad/s³, 2500 mm/s³)")
     clearance_slack: float = Field(5.0, ge=0, le=1e4, description="mm")
     keep_out_radius: float | None = Field(None, gt=0, le=MAX_SIZE_MM, description="mm")
     dt: float | None = Field(None, ge=1e-3, le=1e3, description="s between trajectory "
@@ -150,6 +169,90 @@ class ArmOptions(StrictModel):
             raise ValueError(f"dt: duration / dt is {self.duration / self.dt:,.0f} samples; "
                              f"at most {MAX_TRAJECTORY_SAMPLES:,}")
         return self
+
+
+#: Largest number of boxes a stored point cloud becomes in a path scene.
+MAX_CLOUD_BOXES = 400
+#: Margin (mm) of the bounds derived from a stored scene, around its objects and endpoints.
+SCENE_BOUNDS_MARGIN_MM = 500.0
+
+
+def _cloud_boxes(P: np.ndarray, radius: float) -> list[dict[str, Any]]:
+    """Axis-aligned boxes covering balls of ``radius`` at points ``P``: one per occupied cell
+    of a grid coarse enough for at most ``MAX_CLOUD_BOXES`` cells."""
+    lo, hi = P.min(axis=0), P.max(axis=0)
+    cell = max(float(np.max(hi - lo)) / 4.0, radius, 1.0)
+    while True:
+        keys = np.floor((P - lo) / cell).astype(np.int64)
+        cells, inverse = np.unique(keys, axis=0, return_inverse=True)
+        if len(cells) <= MAX_CLOUD_BOXES:
+            break
+        cell *= 1.5
+    inverse = inverse.reshape(-1)
+    boxes = []
+    for k in range(len(cells)):
+        Q = P[inverse == k]
+        a, b = Q.min(axis=0) - radius, Q.max(axis=0) + radius
+        boxes.append({"type": "box", "lower": a.tolist(), "upper": b.tolist()})
+    return boxes
+
+
+def path_obstacles(objects: Any) -> list[dict[str, Any]]:
+    """Obstacles of a point-path scene (spheres, axis-aligned boxes, capsules) covering a
+    stored scene's objects (``planning.collision`` ``SceneObject``s), never smaller: spheres
+    and capsules as they are, a box as its axis-aligned bounding box, a cylinder as the capsule
+    along its axis, a mesh as its bounding box, a point cloud as boxes over a coarse grid."""
+    out: list[dict[str, Any]] = []
+    for o in objects:
+        R, p = o.pose[:3, :3], o.pose[:3, 3]
+        if o.type == "sphere":
+            out.append({"type": "sphere", "center": p.tolist(), "radius": o.radius})
+        elif o.type == "box":
+            half = 0.5 * np.abs(R) @ np.asarray(o.size)
+            out.append({"type": "box", "lower": (p - half).tolist(),
+                        "upper": (p + half).tolist()})
+        elif o.type == "cylinder":
+            axis = R[:, 2] * (0.5 * o.height)
+            out.append({"type": "capsule", "a": (p - axis).tolist(), "b": (p + axis).tolist(),
+                        "radius": o.radius})
+        elif o.type == "capsule":
+            a = R @ np.asarray(o.a) + p
+            b = R @ np.asarray(o.b) + p
+            out.append({"type": "capsule", "a": a.tolist(), "b": b.tolist(),
+                        "radius": o.radius})
+        elif o.type == "mesh":
+            V = o.world_vertices()
+            lo, hi = V.min(axis=0), V.max(axis=0)
+            pad = 1e-3  # mm: a flat mesh (a wall of two triangles) still gets a box
+            out.append({"type": "box", "lower": (lo - pad).tolist(),
+                        "upper": (hi + pad).tolist()})
+        elif o.type == "points":
+            out.extend(_cloud_boxes(o.world_points(), float(o.radius)))
+    return out
+
+
+def scene_params(stored: Any, given: dict[str, Any], endpoints: list) -> dict[str, Any]:
+    """A path job's inline ``scene`` from a stored scene: its obstacles (``path_obstacles``)
+    and, unless ``given`` has them, bounds around the obstacles and the endpoints."""
+    obstacles = path_obstacles(stored.objects)
+    out = {**given, "obstacles": obstacles}
+    if "bounds" not in given:
+        pts = [np.asarray(e, dtype=float).reshape(1, 3) for e in endpoints
+               if isinstance(e, list) and len(e) == 3
+               and all(isinstance(x, int | float) and not isinstance(x, bool) for x in e)]
+        for ob in obstacles:
+            if ob["type"] == "sphere":
+                c, r = np.asarray(ob["center"]), ob["radius"]
+                pts.append(np.stack([c - r, c + r]))
+            elif ob["type"] == "box":
+                pts.append(np.asarray([ob["lower"], ob["upper"]]))
+            else:
+                ends, r = np.asarray([ob["a"], ob["b"]]), ob["radius"]
+                pts.append(np.vstack([ends - r, ends + r]))
+        P = np.vstack(pts) if pts else np.zeros((1, 3))
+        m = SCENE_BOUNDS_MARGIN_MM
+        out["bounds"] = [(P.min(axis=0) - m).tolist(), (P.max(axis=0) + m).tolist()]
+    return out
 
 
 def _endpoint(v, info: ValidationInfo):

@@ -13,7 +13,8 @@ from app.main import create_app
 
 @pytest.fixture
 def client(tmp_path) -> Iterator[TestClient]:
-    """A test client of a new app without the 3D viewer, storing its data under tmp_path."""
-    api = create_app(Settings(no_viewer=True, data_dir=tmp_path))
+    """A test client of a new app without the 3D viewer, storing its data under tmp_path
+    (imported robots' collision models built at their first query, not at import)."""
+    api = create_app(Settings(no_viewer=True, data_dir=tmp_path, prebuild_collision=False))
     yield TestClient(api)
     api.state.compute.shutdown()  # worker processes of large requests, if any started

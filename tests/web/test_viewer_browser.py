@@ -220,3 +220,78 @@ def test_a_keyed_viewer_in_a_browser(service, browser, tmp_path_factory):
     finally:
         context.close()
         viewer.stop()
+
+
+def test_an_imported_robot_and_a_scene_in_the_browser(service, browser, tmp_path,
+                                                      glt_meshed_zip):
+    """A URDF robot with meshes (POST /robots/import) and a stored scene with a box, an
+    uploaded mesh and a point cloud, shown through the API; the collision checkbox adds the
+    balls."""
+    trimesh = pytest.importorskip("trimesh")
+    api, client = service
+    viewer: Viewer = api.state.viewer
+    r = client.post("/robots/import", files={"file": ("glt.zip", glt_meshed_zip,
+                                                      "application/zip")},
+                    data={"id": "glt_meshed"})
+    assert r.status_code == 201, r.text
+    crate = trimesh.creation.box(extents=(500.0, 400.0, 300.0)).export(file_type="stl")
+    r = client.post("/meshes", files={"file": ("crate.stl", crate, "model/stl")},
+                    data={"id": "crate"})
+    assert r.status_code == 201, r.text
+    rng = np.random.default_rng(20260412)
+    wall = np.column_stack([rng.uniform(-800, 800, 3000), np.full(3000, -1400.0),
+                            rng.uniform(0, 1600, 3000)])
+    eye = np.eye(4)
+
+    def at(x, y, z):
+        T = eye.copy()
+        T[:3, 3] = (x, y, z)
+        return T.tolist()
+
+    r = client.post("/scenes", json={"id": "cell", "objects": [
+        {"type": "box", "id": "pallet", "size": [1200, 800, 150], "pose": at(1300, 0, 75)},
+        {"type": "mesh", "id": "crate", "mesh": "crate", "pose": at(1300, 0, 300)},
+        {"type": "points", "id": "wall", "points": wall.tolist(), "radius": 10},
+    ]})
+    assert r.status_code == 201, r.text
+    r = client.post("/viewer/show", json={"robot": "glt_meshed", "scene": "cell"})
+    assert r.status_code == 200, r.text
+    scene_nodes = r.json()["shown"]["scene_nodes"]
+    assert scene_nodes == ["/scene/cell/pallet", "/scene/cell/crate", "/scene/cell/wall"]
+
+    page = _open(browser, viewer)
+    root = "/robot/glt_meshed"
+    meshes = [f"{root}/links/{link}/visual_0"
+              for link in ("base_link", "link_1", "link_2", "link_3", "link_4", "link_6")]
+    wanted = [*meshes, *scene_nodes]
+    page.wait_for_function("(names) => names.every(n => n in window.__viserSceneTree"
+                           ".getState())", arg=wanted)
+    assert page.evaluate(f"() => ({POINT_COUNT})('/scene/cell/wall')") == 3000
+    # The meshes ride on their link frames, where the kinematics puts them.
+    q = viewer.q()
+    imported = api.state.registry.imported("glt_meshed")
+    _wait_position(page, f"{root}/links/link_3",
+                   imported.link_pose("link_3", q)[:3, 3] * MM_TO_M)
+    # The collision checkbox (the collision model is built on first use: seconds).
+    page.get_by_label("Collision model").check()
+    page.wait_for_function(f"() => '{root}/collision' in window.__viserSceneTree.getState()",
+                           timeout=120_000)
+    assert viewer.collision_nodes == [f"{root}/collision"]
+    page.wait_for_function(
+        "() => { const c = document.querySelector('canvas');"
+        " return c && getComputedStyle(c).opacity === '1'; }")
+    time.sleep(1.0)  # let the meshes render
+    png = page.screenshot(path=str(tmp_path / "viewer_import.png"))
+    from PIL import Image
+
+    pixels = np.asarray(Image.open(io.BytesIO(png)).convert("L"), dtype=float)
+    scene_part = pixels[:, : pixels.shape[1] // 2]
+    assert scene_part.std() > 8.0, scene_part.std()
+    assert len(np.unique(scene_part)) > 50
+    page.get_by_label("Collision model").uncheck()
+    page.wait_for_function(
+        f"() => !('{root}/collision' in window.__viserSceneTree.getState())")
+    # Clearing the scene removes its nodes from the browser.
+    assert client.post("/viewer/show", json={"scene": None}).status_code == 200
+    page.wait_for_function("() => !('/scene/cell' in window.__viserSceneTree.getState())")
+    page.close()

@@ -2,17 +2,20 @@
 
 from __future__ import annotations
 
+import io
 import json
 import math
+import zipfile
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, Path, Request, Response
+from fastapi import APIRouter, Depends, File, Form, Path, Request, Response, UploadFile
 
 from kinematics.cylinders import CylinderSet
 from kinematics.ik import available_methods
 from kinematics.model import MAX_DOF, RobotModel
-from kinematics.urdf import to_urdf
+from kinematics.urdf import imported_to_archive, imported_to_urdf, to_urdf
 
+from ...compute import ComputePool
 from ...registry import ReadOnlyRobotError, RobotConflictError
 from ..deps import RegistryDep, RobotDep
 from ..errors import conflict, forbidden, invalid, not_found, too_large
@@ -145,7 +148,7 @@ def create_robot(registry: RegistryDep, data: ModelBody) -> dict[str, Any]:
     # ModelError and CylinderError are FieldErrors naming the field (``joints[2].lower`` at
     # ["body", "joints", 2, "lower"]): the service answers them 422 there.
     model = RobotModel.from_dict(data)
-    if "cylinders" in model.extras:
+    if {"cylinders", "pump_flow", "pump_cylinders"} & set(model.extras):
         CylinderSet.from_model(model)  # bad cylinder data is the model's fault: 422 now
     try:
         registry.add(model)
@@ -180,6 +183,115 @@ def delete_robot(registry: RegistryDep, robot_id: RobotIdPath) -> Response:
     responses={200: {"description": "URDF XML (metres, rad)",
                      "content": {"application/xml": {}}}},
 )
-def get_robot_urdf(robot: RobotDep) -> Response:
-    """The robot as URDF XML (lengths in metres; joint values as in the API)."""
+def get_robot_urdf(robot: RobotDep, registry: RegistryDep) -> Response:
+    """The robot as URDF XML (lengths in metres; joint values as in the API). An imported
+    robot is exported with all its links and geometry, its meshes referenced as
+    ``meshes/<key>.stl`` (``GET /robots/{robot_id}/meshes/{key}``)."""
+    imported = registry.imported(robot.id)
+    if imported is not None:
+        return Response(imported_to_urdf(imported), media_type="application/xml")
     return Response(to_urdf(robot), media_type="application/xml")
+
+
+@router.get(
+    "/{robot_id}/archive", response_class=Response,
+    responses={200: {"description": "Zip of the URDF and its meshes (binary STL, metres)",
+                     "content": {"application/zip": {}}}},
+)
+def get_robot_archive(robot: RobotDep, registry: RegistryDep) -> Response:
+    """The robot as a zip: ``<id>.urdf`` and, for an imported robot, its meshes under
+    ``meshes/``; it imports again as it is (``POST /robots/import``)."""
+    imported = registry.imported(robot.id)
+    if imported is not None:
+        data = imported_to_archive(imported)
+    else:
+        buf = io.BytesIO()
+        with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
+            z.writestr(f"{robot.id}.urdf", to_urdf(robot))
+        data = buf.getvalue()
+    return Response(data, media_type="application/zip", headers={
+        "content-disposition": f'attachment; filename="{robot.id}.zip"'})
+
+
+# ---- import from URDF ---------------------------------------------------------------------
+
+def _import_worker(data: bytes, filename: str, options: dict[str, Any]
+                   ) -> tuple[Any, dict[str, bytes]]:
+    """Run in a compute worker: parse the upload, load its meshes, build the robot; answer
+    it with its mesh files encoded for the store."""
+    from kinematics.urdf_import import import_robot, mesh_to_bytes
+
+    robot = import_robot(data, filename, **options)
+    return robot, {key: mesh_to_bytes(mesh) for key, mesh in robot.meshes.items()}
+
+
+def _fixed_joints(text: str | None) -> dict[str, float] | None:
+    if text is None or not text.strip():
+        return None
+    try:
+        value = json.loads(text)
+    except ValueError as exc:
+        raise invalid(["fixed_joints"], f"must be a JSON object name -> value: {exc}") from None
+    if not isinstance(value, dict) or len(value) > MAX_DOF * 8:
+        raise invalid(["fixed_joints"], "must be a JSON object of at most "
+                      f"{MAX_DOF * 8} joint names -> values")
+    for name, v in value.items():
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise invalid(["fixed_joints", name], "must be a finite number")
+    return {str(k): float(v) for k, v in value.items()}
+
+
+@write_router.post(
+    "/import", status_code=201,
+    responses={409: {"description": "Id taken or a built-in's"},
+               413: {"description": "Upload too large"},
+               422: {"description": "Invalid URDF, archive, mesh or option; the field and "
+                                    "element at fault are named"}},
+)
+async def import_robot_route(
+    request: Request,
+    registry: RegistryDep,
+    file: Annotated[UploadFile, File(description="A .urdf file, or a .zip / .tar.gz holding "
+                                                 "the URDF and its meshes")],
+    id: Annotated[str, Form(pattern=r"^[A-Za-z0-9_-]{1,64}$",
+                            description="Id of the new robot")],
+    name: Annotated[str | None, Form(max_length=200)] = None,
+    urdf: Annotated[str | None, Form(max_length=1000, description="Which URDF of the "
+                                     "archive, when it holds several")] = None,
+    base_link: Annotated[str | None, Form(max_length=200, description="Default: the URDF "
+                                          "root (or the SRDF group's chain base)")] = None,
+    tip_link: Annotated[str | None, Form(max_length=200, description="Default: the end of "
+                                         "the only movable chain")] = None,
+    srdf: Annotated[UploadFile | None, File(description="SRDF: disabled collision pairs "
+                                            "and groups")] = None,
+    group: Annotated[str | None, Form(max_length=200, description="SRDF group whose chain "
+                                      "gives base and tip")] = None,
+    fixed_joints: Annotated[str | None, Form(max_length=64 * 1024, description="JSON object: "
+                                             "joint name -> value for movable joints off the "
+                                             "chain (default 0)")] = None,
+) -> dict[str, Any]:
+    """Import a robot from URDF (with its meshes): stored, served like any custom robot, with
+    its links, collision geometry and meshes. Answers the stored model (as
+    ``GET /robots/{robot_id}``)."""
+    if registry.is_builtin(id) or id in registry.ids():
+        raise conflict(["id"], f"robot id '{id}' is taken")
+    options: dict[str, Any] = {
+        "robot_id": id, "name": name, "urdf": urdf, "base_link": base_link,
+        "tip_link": tip_link, "group": group, "fixed_joints": _fixed_joints(fixed_joints),
+        "srdf": await srdf.read() if srdf is not None else None,
+    }
+    data = await file.read()
+    pool: ComputePool = request.app.state.compute
+    robot, files = await pool.run(True, _import_worker, data, file.filename or "robot.urdf",
+                                  options)
+    try:
+        registry.add_imported(robot, files)
+    except RobotConflictError as exc:
+        raise conflict(["id"], str(exc)) from None
+    # Its collision model is built now, in a compute worker, and stored: the first collision
+    # query finds it ready (or waits for this build).
+    if request.app.state.settings.prebuild_collision:
+        from .collision import start_collision_build
+
+        start_collision_build(request.app, id)
+    return robot.model.to_dict()

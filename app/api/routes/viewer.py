@@ -1,4 +1,5 @@
-"""Tell the 3D viewer what to show: a robot (or rig) in a configuration, or a finished job."""
+"""Tell the 3D viewer what to show: a robot (or rig) in a configuration, or a finished job, and
+a stored scene."""
 
 from __future__ import annotations
 
@@ -13,17 +14,44 @@ router = APIRouter(prefix="/viewer", tags=["viewer"])
 
 @router.post("/show")
 def viewer_show(request: Request, registry: RegistryDep, body: ViewerShowRequest) -> dict:
-    """Show a robot in a configuration, or a finished job's result, in the 3D viewer."""
+    """Show a robot in a configuration or a finished job's result, and/or a stored scene
+    (``"scene": null`` clears it), in the 3D viewer."""
     from web.viewer import JobNotReady
 
     viewer = request.app.state.viewer
     if viewer is None:
         raise unavailable("viewer", "the 3D viewer is not running (started with --no-viewer)")
-    if body.job is not None:
-        if body.robot is not None or body.q is not None:
-            raise invalid(["job"], "give either a job, or a robot (and q), not both")
+    has_scene = "scene" in body.model_fields_set
+    if body.job is not None and (body.robot is not None or body.q is not None):
+        raise invalid(["job"], "give either a job, or a robot (and q), not both")
+    if body.job is None and body.robot is None and (body.q is not None or not has_scene):
+        raise invalid(["robot"], "name the robot (or rig) to show, a job, or a scene")
+    if body.scene is not None:  # checked first: an unknown scene changes nothing
+        scenes = getattr(request.app.state, "scenes", None)
         try:
-            return {"shown": viewer.show_job(body.job)}
+            if scenes is None:
+                raise KeyError(body.scene)
+            scenes.describe(body.scene)
+        except KeyError:
+            raise http_error(404, ["body", "scene"], f"unknown scene '{body.scene}'",
+                             "not_found") from None
+    if body.robot is not None:
+        if body.robot not in registry.rigs:
+            try:
+                model = registry.get(body.robot)
+            except KeyError:
+                raise http_error(404, ["body", "robot"], f"unknown robot '{body.robot}'",
+                                 "not_found") from None
+            if body.q is not None and len(body.q) != model.dof:
+                raise invalid(["q"], f"expected {model.dof} joint values for robot "
+                              f"'{model.id}', got {len(body.q)}")
+        elif body.q is not None:
+            raise invalid(["q"], f"'{body.robot}' is a rig: it is shown at mid-limits, "
+                          "give no q")
+    shown: dict = {}
+    if body.job is not None:
+        try:
+            shown = viewer.show_job(body.job)
         except KeyError:
             raise http_error(404, ["body", "job"], f"unknown job '{body.job}'",
                              "not_found") from None
@@ -31,21 +59,17 @@ def viewer_show(request: Request, registry: RegistryDep, body: ViewerShowRequest
             raise conflict(["job"], str(exc)) from None
         except ValueError as exc:
             raise invalid(["job"], str(exc)) from None
-    if body.robot is None:
-        raise invalid(["robot"], "name the robot (or rig) to show, or a job")
-    if body.robot not in registry.rigs:
+    elif body.robot is not None:
         try:
-            model = registry.get(body.robot)
-        except KeyError:
-            raise http_error(404, ["body", "robot"], f"unknown robot '{body.robot}'",
+            shown = viewer.select(body.robot, body.q)
+        except ValueError as exc:
+            raise invalid(["q"], str(exc)) from None
+    if has_scene:
+        try:
+            shown = {**shown, **viewer.show_scene(body.scene)}
+        except KeyError:  # deleted meanwhile
+            raise http_error(404, ["body", "scene"], f"unknown scene '{body.scene}'",
                              "not_found") from None
-        if body.q is not None and len(body.q) != model.dof:
-            raise invalid(["q"], f"expected {model.dof} joint values for robot "
-                          f"'{model.id}', got {len(body.q)}")
-    elif body.q is not None:
-        raise invalid(["q"], f"'{body.robot}' is a rig: it is shown at mid-limits, give no q")
-    try:
-        shown = viewer.select(body.robot, body.q)
-    except ValueError as exc:
-        raise invalid(["q"], str(exc)) from None
+        except ValueError as exc:  # a stored scene that no longer parses
+            raise invalid(["scene"], str(exc)) from None
     return {"shown": shown}
