@@ -202,7 +202,8 @@ def identify(paper: dict, *, draws: int = SENSITIVITY_DRAWS, seed: int = 0) -> d
         "90 deg, d3 = L1, d7 = L2) gives joint values at the initial pose, not offsets: every "
         "offset is 0 and q is the printed theta/d. With this reading FK at the initial q "
         "reproduces the printed rotation [[0,0,1],[1,0,0],[0,1,0]] exactly "
-        f"({rot0:.1e} deg), whatever the lengths: the rotation depends only on the twists "
+        f"({'below 1e-12' if rot0 < 1e-12 else f'{rot0:.1e}'} deg: round-off), whatever the "
+        "lengths: the rotation depends only on the twists "
         "and the joint angles.",
         "The nine unprinted constants (a0, d1, a1, d2, a2, d5, a5, d6, a6) were fitted with "
         "kinematics.calibration.calibrate to three measurements: the initial pose matrix "

@@ -28,6 +28,15 @@ about 0.45 m, less than the 0.8 m it is away), never closer to an obstacle than 
 (the goal direction projected onto the obstacle's tangent plane in joint space, a seeded
 random tangent when the goal is straight behind it), at most ``max_escapes`` times; after
 that the planner reports failure rather than return a path that does not reach the goal.
+
+``ClassicAPF`` is the conventional field the paper improves on (Khatib 1986), in the same
+joint space: a quadratic attraction ``F_att = delta (u_goal - u)`` on the whole joint vector
+and the repulsion ``U_rep = lambda / 2 (1 / d_l - 1 / d_A)^2``, whose force
+``lambda (1 / d_l - 1 / d_A) / d_l^2`` along ``n_OR`` does not vanish at the goal. It is a
+baseline for ``benchmarks/bench_papers.py``'s collision-probability experiment, not a
+registered move planner. ``follow_field`` descends either field without the planner's
+safeguards (no step refused for coming too close, no escapes), which is what a potential
+field method is on its own: the field alone has to keep the arm clear.
 """
 
 from __future__ import annotations
@@ -41,7 +50,7 @@ from kinematics.errors import FieldError
 from ..status import PlanStatus
 from .space import ArmSpace, Obstacles
 
-__all__ = ["IAPF", "MovePath"]
+__all__ = ["IAPF", "ClassicAPF", "FieldRun", "MovePath", "follow_field"]
 
 
 @dataclass(frozen=True)
@@ -240,3 +249,80 @@ class IAPF:
     def _fail(space, path, min_c, iterations, message, status: PlanStatus) -> MovePath:
         return MovePath(space.from_u(np.array(path)), status, message, float(min_c),
                           iterations, "iapf")
+
+
+@dataclass(frozen=True)
+class ClassicAPF:
+    """The conventional artificial potential field (Khatib): quadratic attraction, repulsion
+    ``lambda (1 / d - 1 / d_A) / d^2`` per link within ``influence`` (distances in metres in
+    the potentials, ``influence`` in mm). The gains and steps default to ``IAPF``'s, so the
+    two fields differ only in their shape."""
+
+    attraction_gain: float = 1.0
+    repulsion_gain: float = 0.01
+    influence: float = 800.0
+    step: float = 0.005
+    far_step: float = 0.02
+    max_steps: int = 4000
+    stall_window: int = 40
+    gradient_step: float = 1e-4
+
+    def forces(self, space: ArmSpace, obstacles: Obstacles, u: np.ndarray,
+               u_goal: np.ndarray, clear_links: np.ndarray) -> np.ndarray:
+        """Total force at ``u (3,)`` given the per-link clearance ``clear_links (L,)`` mm."""
+        F = self.attraction_gain * (u_goal - u)
+        near = np.flatnonzero(clear_links < self.influence)
+        if len(near) == 0 or self.repulsion_gain == 0:
+            return F
+        h = self.gradient_step
+        probes = np.clip(u[None, :] + h * np.eye(3), 0.0, 1.0)
+        c_probe = space.link_clearance(space.from_u(probes), obstacles)
+        grad = (c_probe[:, near] - clear_links[near][None, :]) / h
+        grad = np.where(np.isfinite(grad), grad, 0.0)
+        norms = np.linalg.norm(grad, axis=0)
+        n_or = np.where(norms > 0, grad / np.where(norms > 0, norms, 1.0), 0.0)
+        d = np.maximum(clear_links[near], 1.0) / 1000.0
+        inv = 1.0 / d - 1.0 / (self.influence / 1000.0)
+        return F + ((self.repulsion_gain * inv / d**2)[None, :] * n_or).sum(axis=1)
+
+
+@dataclass(frozen=True)
+class FieldRun:
+    """A descent of a potential field: the normalised path ``u (K, 3)``, whether it got
+    within one step of the goal, and the steps taken."""
+
+    u: np.ndarray
+    reached: bool
+    steps: int
+
+
+def follow_field(field, space: ArmSpace, obstacles: Obstacles, q_start, q_goal) -> FieldRun:
+    """Descend ``field`` (an ``IAPF`` or ``ClassicAPF``) from ``q_start (3,)`` towards
+    ``q_goal (3,)``: a step of ``step`` (``far_step`` while every link is beyond the
+    influence distance) along the force, whatever the clearance there, until within one step
+    of the goal, ``max_steps``, or no progress towards the goal over ``stall_window`` steps
+    (a local minimum)."""
+    u = space.to_u(np.asarray(q_start, dtype=float)[None])[0]
+    ug = space.to_u(np.asarray(q_goal, dtype=float)[None])[0]
+    path = [u.copy()]
+    best, quiet = np.inf, 0
+    for k in range(field.max_steps):
+        c = space.link_clearance(space.from_u(u[None]), obstacles)[0]
+        s = field.far_step if c.min() > field.influence else field.step
+        rho = float(np.linalg.norm(ug - u))
+        if rho <= s:
+            path.append(ug.copy())
+            return FieldRun(np.array(path), True, k + 1)
+        F = field.forces(space, obstacles, u, ug, c)
+        norm = float(np.linalg.norm(F))
+        if norm < 1e-12:
+            break
+        u = np.clip(u + s * F / norm, 0.0, 1.0)
+        path.append(u.copy())
+        if rho < best - 0.1 * field.step:
+            best, quiet = rho, 0
+        else:
+            quiet += 1
+            if quiet >= field.stall_window:
+                break
+    return FieldRun(np.array(path), False, len(path) - 1)

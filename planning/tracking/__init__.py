@@ -18,6 +18,7 @@ from kinematics.lazy import lazy_names
 if TYPE_CHECKING:
     from .simulator import DEFAULT_GAINS as DEFAULT_GAINS
     from .simulator import MAX_STEPS as MAX_STEPS
+    from .simulator import NO_PI_GAINS as NO_PI_GAINS
     from .simulator import PAPER_PI_GAINS as PAPER_PI_GAINS
     from .simulator import UNTUNED_PI_GAINS as UNTUNED_PI_GAINS
     from .simulator import Controller as Controller
@@ -51,6 +52,7 @@ _LAZY = {
     "EllipseTask": "simulator",
     "LineTask": "simulator",
     "MAX_STEPS": "simulator",
+    "NO_PI_GAINS": "simulator",
     "PAPER_PI_GAINS": "simulator",
     "PIGains": "simulator",
     "Task": "simulator",

@@ -82,6 +82,7 @@ __all__ = [
     "PAPER_PI_GAINS",
     "DEFAULT_GAINS",
     "UNTUNED_PI_GAINS",
+    "NO_PI_GAINS",
     "MAX_STEPS",
     "default_start",
     "desired_path",
@@ -131,6 +132,12 @@ class PIGains:
 #: plant: a time constant of two control periods (kp = 5 /s at dt = 0.1 s) and critical
 #: damping of the continuous loop (ki = kp^2 / 4).
 UNTUNED_PI_GAINS = PIGains((5.0, 5.0), 6.25)
+
+#: "No PI" (Table 3's first row), read as the resolved-rate law without the PI block: with
+#: ``controller="default"`` and these zero gains the desired velocity alone is mapped through
+#: eq. 13 (open loop, no correction of the deviation), so the error is the drift of the
+#: integration. It involves no gains chosen by us, unlike ``UNTUNED_PI_GAINS``.
+NO_PI_GAINS = PIGains((0.0, 0.0), 0.0)
 
 #: Gains of the default (feed-forward) controller at dt = 0.1 s: discrete poles at
 #: |z| = 0.71 (well damped); the integral removes the slow bias that the arm's curvature

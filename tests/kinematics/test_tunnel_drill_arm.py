@@ -20,7 +20,7 @@ from kinematics.drilling import (
 from kinematics.fk import fk
 from kinematics.ik import IKStatus
 from kinematics.library import builtin_model
-from kinematics.model import ModelError
+from kinematics.model import ModelError, RobotModel
 from kinematics.rigs import Rig, builtin_rig
 from kinematics.transforms import rot_x, rot_z, rotation_angle, trans
 
@@ -55,18 +55,41 @@ def test_structure_matches_table_1():
     assert any("misprint" in n for n in data["notes"])
 
 
-def test_initial_pose_matrix(paper):
-    init = paper["initial_pose"]
-    T = fk(ARM, paper_q(init["q"]))
-    T_paper = np.array(init["T"], dtype=float)
-    assert rotation_angle(T[:3, :3].T @ T_paper[:3, :3]) < 1e-6
-    assert np.linalg.norm(T[:3, 3] - T_paper[:3, 3]) < 1.0
+def test_initial_orientation_follows_from_table_1_alone(paper):
+    """The printed initial rotation, and the drill along the tunnel axis at Table 3's target
+    configuration, from Table 1's twists and the printed joint values whatever the link
+    constants: an independent check (the constants were fitted to the positions, not to
+    the rotation)."""
+    tool = _identification_tool()
+    R_paper = np.array(paper["initial_pose"]["T"], dtype=float)[:3, :3]
+    configs = [paper_q(paper["initial_pose"]["q"]), paper_q(paper["table3"][1]["q"])]
+    rng = np.random.default_rng(8)
+    for constants in rng.uniform(-500.0, 500.0, (10, len(tool.UNKNOWNS))):
+        model = RobotModel.from_dict(tool.skeleton(dict(zip(tool.UNKNOWNS, constants))))
+        for q in configs:
+            assert rotation_angle(fk(model, q)[:3, :3].T @ R_paper) < 1e-9
+    for q in configs:  # ... and so does the stored model
+        assert rotation_angle(fk(ARM, q)[:3, :3].T @ R_paper) < 1e-9
 
 
-def test_table_3_positions(paper):
-    for row in paper["table3"]:
-        p = fk(ARM, paper_q(row["q"]))[:3, 3]
-        assert np.linalg.norm(p - row["xyz"]) < 1.0, (row["xyz"], p)
+def test_table_3_positions_are_fitted_not_predicted(paper):
+    """The six unprinted constants the positions determine were fitted to exactly these
+    numbers: two distinct configurations (the initial pose is Table 3's first row), six
+    coordinates, rank 6. So FK reproducing them is no check of the model; what is left is
+    the paper's own disagreement, y = 906.5 in the matrix and 907 in Table 3 for the same
+    pose, which the fit splits."""
+    tool = _identification_tool()
+    meas = tool.measurements(paper)
+    res = tool.fit(meas)
+    distinct = {tuple(np.round(m["q"], 9)) for m in meas}
+    assert res.rank == 3 * len(distinct) == 6  # as many constants as coordinates: no check
+    T = fk(ARM, np.array([m["q"] for m in meas]))
+    init, row1, row2 = (T[k, :3, 3] for k in range(3))
+    np.testing.assert_allclose(init, row1)  # one configuration
+    y_init, y_row1 = paper["initial_pose"]["T"][1][3], paper["table3"][0]["xyz"][1]
+    assert abs(y_init - y_row1) == 0.5
+    assert abs(init[1] - y_init) + abs(init[1] - y_row1) == pytest.approx(0.5, abs=2e-3)
+    np.testing.assert_allclose(row2, paper["table3"][1]["xyz"], atol=2e-3)  # stored to 1 um
 
 
 def test_limits_contain_table_3(paper):
@@ -143,16 +166,14 @@ def test_json_is_what_the_identification_tool_produces(paper):
 
 
 # ---- drilling IK --------------------------------------------------------------------------
-def test_drill_ik_gives_back_table_3(paper):
+def test_drill_ik_on_table_3s_hole(paper):
+    """Drilling IK on the target hole: status, feed and a drill perpendicular to the face.
+    Its joints equal Table 3's (to 6e-6 deg) only because the model was fitted to that row
+    (``test_table_3_positions_are_fitted_not_predicted``): not a paper check."""
     row = paper["table3"][1]
     (res,) = drill_ik(ARM, row["xyz"])
     assert res.status is IKStatus.OK and res.method == "drilling"
-    expected = paper_q(row["q"])
-    # Measured: 6e-6 deg on the angles and 1.2e-3 mm on d3 (the constants are stored to
-    # 1 um); the bounds below are the contract.
-    angles = [0, 1, 3, 4, 5]
-    assert np.degrees(np.abs(res.q[angles] - expected[angles])).max() < 0.05
-    assert abs(res.q[2] - expected[2]) < 1.0 and res.q[6] == DRILL_D7
+    assert res.q[6] == DRILL_D7 and res.q[3] == 0.0
     T = fk(ARM, res.q)
     assert np.linalg.norm(T[:3, 3] - row["xyz"]) < 1e-6
     axis = drill_axis(ARM, res.q)

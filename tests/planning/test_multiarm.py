@@ -16,7 +16,7 @@ from planning.drilling.envelopes import (
     drill_arm_envelope,
     min_distance,
 )
-from planning.drilling.iapf import IAPF
+from planning.drilling.iapf import IAPF, ClassicAPF, follow_field
 from planning.drilling.multiarm import (
     PAPER_ACCELERATION_BOUND,
     ROTATIONAL_JOINTS,
@@ -148,6 +148,46 @@ def test_iapf_repulsion_vanishes_at_the_goal(blocked):
     np.testing.assert_allclose(np.array(across[1:]) / across[0], [0.1, 0.01], rtol=0.05)
 
 
+def test_iapf_reaches_a_goal_next_to_an_obstacle_where_the_classic_field_stalls(rig, env):
+    """The failure IAPF's repulsion is built to remove (section 3.3.2): a goal inside the
+    influence distance of the parked middle arm. Descending the fields alone (no
+    safeguard), the classic repulsion, which does not vanish at the goal, holds the arm off
+    it; IAPF's reaches it. Neither lets the envelopes meet."""
+    q_mid = drill_ik(rig.arms["middle"], [FACE_X, 1400, 3000])[0].q
+    obs = Obstacles.of_arms({"middle": (rig.arms["middle"], q_mid)}, env)
+    space = ArmSpace(rig.arms["left"], env, FACE_X)
+    qa = drill_ik(rig.arms["left"], [FACE_X, 3500, 3000])[0].q[:3]
+    qb = drill_ik(rig.arms["left"], [FACE_X, 2100, 2600])[0].q[:3]
+    goal_clearance = space.link_clearance(qb[None], obs).min()
+    assert 0 < goal_clearance < IAPF().influence
+    ug = space.to_u(qb[None])[0]
+    runs = {}
+    for field in (IAPF(), ClassicAPF()):
+        run = follow_field(field, space, obs, qa, qb)
+        assert space.link_clearance(space.from_u(run.u), obs).min() > 0
+        runs[type(field).__name__] = run
+    assert runs["IAPF"].reached
+    np.testing.assert_allclose(runs["IAPF"].u[-1], ug)
+    assert not runs["ClassicAPF"].reached
+    assert np.linalg.norm(runs["ClassicAPF"].u[-1] - ug) > 10 * ClassicAPF().step
+
+
+def test_classic_field_is_khatibs(blocked):
+    """Quadratic attraction everywhere; repulsion lambda (1/d - 1/d_A) / d^2 along the
+    clearance gradient, the same at any distance to the goal."""
+    space, obs, qa, _ = blocked
+    apf = ClassicAPF()
+    u = space.to_u(qa[None, :3])[0]
+    ug = np.clip(u + np.array([0.4, -0.3, 0.2]), 0, 1)
+    F = apf.forces(space, Obstacles.none(), u, ug, np.full(6, np.inf))
+    np.testing.assert_allclose(F, apf.attraction_gain * (ug - u))
+    c = space.link_clearance(qa[None, :3], obs)[0]
+    rep = [apf.forces(space, obs, u, g, c) - apf.attraction_gain * (g - u)
+           for g in (ug, u + 1e-3 * (ug - u))]
+    np.testing.assert_allclose(rep[0], rep[1])  # does not fade near the goal
+    assert np.linalg.norm(rep[0]) > 0
+
+
 @pytest.mark.parametrize("planner", [IAPF(), RRTConnect()])
 def test_planners_go_around_the_parked_middle_arm(blocked, planner):
     space, obs, qa, qb = blocked
@@ -170,7 +210,25 @@ def test_planners_go_around_the_parked_middle_arm(blocked, planner):
     np.testing.assert_allclose(q[:, 5], np.pi / 2 - q[:, 0], atol=1e-12)
     cont = mv.traj.continuity()  # quintic B-spline: C4 at the knots
     assert cont["velocity"] < 1e-6 and cont["acceleration"] < 1e-6
-    assert mv.traj.peaks(2)[0][:2].max() <= PAPER_ACCELERATION_BOUND
+    # The time scaling keeps the acceleration limit we set (MotionLimits: 0.24 rad/s^2, just
+    # under the paper's 0.25): a limit imposed, not a result (see the next test).
+    assert mv.traj.peaks(2)[0][:2].max() <= MotionLimits().acceleration[0] + 1e-9
+
+
+def test_the_papers_acceleration_bound_is_imposed_not_found(blocked):
+    """Paper 002 reports joint accelerations below 0.25 rad/s^2. Ours stay below it only
+    because the time scaling is given that limit: with the velocity limit alone the same
+    move peaks far above it, and any other limit is kept as well."""
+    space, obs, qa, qb = blocked
+    peaks = {}
+    for acc in (1e6, 0.1):
+        limits = MotionLimits(acceleration=(acc, acc, 1e9))
+        mv = plan_move(space, obs, qa, qb, IAPF(), np.random.default_rng(0), limits=limits,
+                       standoff=300.0)
+        assert mv.success, mv.message
+        peaks[acc] = mv.traj.peaks(2)[0][:2].max()
+    assert peaks[1e6] > 2 * PAPER_ACCELERATION_BOUND
+    assert peaks[0.1] <= 0.1 + 1e-9
 
 
 def test_an_unreachable_goal_is_a_failure_not_a_path(blocked, rig, env):
@@ -227,7 +285,9 @@ def test_small_face_plan_is_collision_free(rig, small_plan, capsys):
     assert fp.success, fp.messages
     assert fp.status is PlanStatus.OK and fp.total_collisions == 0
     assert set(fp.min_distance) == {"left-middle", "left-right", "middle-right"}
-    assert all(d.min() > 0 for d in fp.min_distance.values())
+    # Every pair keeps more than the planners' 100 mm margin at every 10 ms sample (measured:
+    # 913 mm middle-left, 1025 mm middle-right), not merely clear of overlap.
+    assert all(d.min() > IAPF().safety for d in fp.min_distance.values())
     dt = np.diff(fp.t)
     assert dt.max() <= 0.01 + 1e-9  # checked every 10 ms
     for a, ap in fp.arms.items():
@@ -237,7 +297,10 @@ def test_small_face_plan_is_collision_free(rig, small_plan, capsys):
         ends = np.array([mv.q_goal for mv in ap.timeline.moves[:4]])
         q_holes = [r.q for r in drill_ik(rig.arms[a], fp.allocation.holes[ap.order])]
         np.testing.assert_allclose(ends, q_holes, atol=1e-6)
-        assert fp.accelerations[a][list(ROTATIONAL_JOINTS)].max() <= PAPER_ACCELERATION_BOUND
+        # The limit we impose, measured on the 10 ms samples by finite differences (within
+        # 1 %): the paper's 0.25 rad/s^2 holds because of it, not of the plan.
+        limit = MotionLimits().acceleration[0]
+        assert fp.accelerations[a][list(ROTATIONAL_JOINTS)].max() <= 1.01 * limit
     # middle first; the side arms start when it has finished and parked
     mid_end = fp.arms["middle"].timeline.end
     assert fp.arms["left"].timeline.starts[0] == pytest.approx(mid_end)

@@ -9,7 +9,7 @@ import pytest
 
 from kinematics.fk import fk
 from kinematics.library import builtin_model
-from planning.tracking import UNTUNED_PI_GAINS, LineTask, simulate, tune_gains
+from planning.tracking import NO_PI_GAINS, UNTUNED_PI_GAINS, LineTask, simulate, tune_gains
 from planning.tracking.stats import TrackingTable, TunerStats, format_table3, tracking_table
 
 ARM = builtin_model("hyper_redundant_9dof")
@@ -69,15 +69,30 @@ def test_untuned_pi_row_repeats_one_deterministic_run(table_and_progress):
     assert base.p_value is None
 
 
-def test_rank_sum_finds_every_tuner_better_than_untuned_pi(table_and_progress):
+def test_no_pi_row_is_the_open_loop_law(table_and_progress):
+    """Table 3's "No PI": the desired velocity alone through eq. 13 (zero gains on the
+    feed-forward law), one deterministic run repeated: no gains of ours in it."""
+    table, _ = table_and_progress
+    row = table.no_pi
+    assert row.name == "no_pi" and row.gains == (NO_PI_GAINS,) * RUNS
+    sim = simulate(ARM, TASK, NO_PI_GAINS, controller="default")
+    err = np.linalg.norm(sim.x_desired - fk(ARM, sim.q[0])[:, :3, 3], axis=1)
+    np.testing.assert_allclose(row.fitness, np.full(RUNS, err.mean()), rtol=1e-9)
+    np.testing.assert_allclose(row.run_max, np.full(RUNS, err.max()), rtol=1e-9)
+    assert row.p_value is None and row.p_no_pi is None
+
+
+def test_rank_sum_finds_every_tuner_better_than_no_pi(table_and_progress):
+    """Against the baseline that has no gains of ours (the untuned PI's gains are our pick,
+    so beating it says little): every tuning, even 3 iterations long, beats No PI."""
     table, _ = table_and_progress
     for row in table.rows:
-        assert row.fitness.max() < table.baseline.fitness.min()
+        assert row.fitness.max() < table.no_pi.fitness.min()
         # 6 against 6 with no overlap: rank sum W = 1 + ... + 6 = 21 against a mean of
         # 6 * 13 / 2 = 39 and a variance of 6 * 6 * 13 / 12 = 39, z = -18 / sqrt(39) = -2.882,
         # two-sided p = 2 * Phi(-2.882) = 0.00395 (the normal approximation)
-        assert row.p_value == pytest.approx(0.00395, abs=5e-5)
-        assert row.sign(table.baseline) == "+"
+        assert row.p_no_pi == pytest.approx(0.00395, abs=5e-5)
+        assert row.sign(table.no_pi, row.p_no_pi) == "+"
 
 
 def test_sign_is_minus_when_worse_and_equals_when_not_significant():
@@ -103,7 +118,7 @@ def test_format_table3_converts_the_papers_metres():
     table = TrackingTable("line", base, (pso, gwo))
     paper = {"PI-PSO": {"max": 8.42e-3, "mean": 2.75e-3, "std": 7.32e-4}}
     lines = format_table3(table, paper).splitlines()
-    assert len(lines) == 1 + 1 + 2  # header, PI, two tuners
+    assert len(lines) == 1 + 1 + 2  # header, PI, two tuners (no No PI row given)
     assert lines[0].split()[:10] == ["line", "algorithm", "max", "variation", "mean",
                                      "percent", "std", "ranksum", "p", "|"]
     assert lines[1].split() == ["PI", "4.0000", "/", "2.0000", "/", "0.5000", "/",
@@ -116,6 +131,12 @@ def test_format_table3_converts_the_papers_metres():
     plain = format_table3(table).splitlines()
     assert "paper" not in plain[0] and "|" not in "".join(plain)
     assert plain[2].split() == lines[2].split()[:8]
+    # With a No PI row it comes first, laid out like PI's.
+    no_pi = TunerStats("no_pi", np.full(4, 2.5), np.full(4, 5.0), np.full(4, 0.25), ())
+    with_row = format_table3(TrackingTable("line", base, (pso, gwo), no_pi)).splitlines()
+    assert len(with_row) == 1 + 2 + 2
+    assert with_row[1].split() == ["No", "PI", "5.0000", "/", "2.5000", "/", "0.2500", "/"]
+    assert with_row[2:] == plain[1:]
 
 
 def test_runs_must_be_positive():
