@@ -85,8 +85,7 @@ def test_each_route_has_a_body_cap_below_the_global_one(client):
         "/robots/{robot_id}/ik"]
     assert caps[("/robots/{robot_id}/jacobian", "post")] == DEFAULT_BODY_CAP
     # Only batch routes and uploads take more than 8 MiB: each has its own cap.
-    big = {"/robots/{robot_id}/fk", "/robots/{robot_id}/collision", "/robots/import",
-           "/scenes", "/meshes"}
+    big = {"/robots/{robot_id}/fk", "/robots/import", "/scenes", "/meshes"}
     assert all(cap <= 8 * 1024 * 1024 or path in big for (path, _), cap in caps.items())
     assert all(caps[(path, "post")] == ROUTE_BODY_CAPS[path] for path in big)
     # A single-pose call refuses 300 kB at once, from Content-Length alone.

@@ -22,8 +22,10 @@ from .scenes import get_scenes
 router = APIRouter(prefix="/robots", tags=["collision"])
 log = logging.getLogger(__name__)
 
-#: Most configurations in one collision query (413 above): the FK cap.
-MAX_COLLISION_CONFIGS = 100_000
+#: Most configurations in one collision query (413 above). A configuration of an imported
+#: robot can cost milliseconds (exact distances of near misses on big meshes): 10,000 keeps
+#: one request within about a minute of one compute worker.
+MAX_COLLISION_CONFIGS = 10_000
 #: Above this many configurations a query runs in a compute worker.
 HEAVY_COLLISION_CONFIGS = 1_000
 #: Largest ``margin`` (mm).
