@@ -12,7 +12,7 @@ http://127.0.0.1:8080), ``--api-key`` (sent as ``Authorization: Bearer`` on requ
 change state; without it the viewer attacks are skipped unless the service turns out to
 require a key), ``--pid`` (the service process; by default the process listening on the API
 port, found through /proc), ``--body-cap`` (the service's request body cap,
-``KINOPLAN_MAX_BODY_BYTES``, default 64 MiB), ``--only`` (names or group numbers, comma
+``KINOPLAN_MAX_BODY_BYTES``, default 80 MiB), ``--only`` (names or group numbers, comma
 separated).
 
 Each row gives the answer code(s), the wall time, the growth of the service's resident
@@ -1001,7 +1001,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--api-key", default=None, help="the service's KINOPLAN_API_KEY, if any")
     p.add_argument("--pid", type=int, default=None,
                    help="service process (default: the one listening on the API port)")
-    p.add_argument("--body-cap", type=int, default=64 * 1024 * 1024,
+    p.add_argument("--body-cap", type=int, default=80 * 1024 * 1024,
                    help="the service's KINOPLAN_MAX_BODY_BYTES (%(default)s)")
     p.add_argument("--only", default=None, help="attack names or group numbers, comma separated")
     p.add_argument("--list", action="store_true", help="list the attacks and exit")
