@@ -40,21 +40,12 @@ import numpy as np
 
 from planning.paths import path_length, plan_path
 from planning.paths.auto import certified_shortest_path
+from planning.paths.compare import toy_scene
 from planning.paths.scene import Scene
 
 START, GOAL = np.array([1.0, 1.0, 1.0]), np.array([100.0, 100.0, 100.0])
 PAPER_TABLE4 = {"improved": 3832.23, "basic": 4593.62}  # average path, mm
 
-
-def toy_scene(layout: int) -> Scene:
-    """The tests' layouts: five spheres (r 12-18 mm) across the diagonal, jittered."""
-    rng = np.random.default_rng(layout)
-    t = np.array([0.2, 0.35, 0.5, 0.65, 0.8])
-    centres = START + t[:, None] * (GOAL - START) + rng.uniform(-10, 10, (5, 3))
-    radii = rng.uniform(12, 18, 5)
-    return Scene.create([[0, 0, 0], [100, 100, 100]],
-                        [{"center": c.tolist(), "radius": float(r)}
-                         for c, r in zip(centres, radii)])
 
 
 def arm_scene() -> tuple[Scene, np.ndarray, np.ndarray]:

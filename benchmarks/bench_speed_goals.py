@@ -33,7 +33,7 @@ from kinematics.fk import fk
 from kinematics.ik import solve_ik
 from kinematics.library import builtin_model
 from planning.paths import plan_path
-from planning.paths.scene import Scene
+from planning.paths.compare import toy_scene
 from planning.sequencing import sequence_holes
 from planning.tracking import GainBounds, LineTask, tracking_fitness
 
@@ -44,17 +44,6 @@ KINEMATICS_SEED = 2027
 #: Calls per kinematics case: the goal is this many times the per-call goal.
 KINEMATICS_CALLS = 200
 
-
-def toy_scene(layout: int, margin: float = 0.0) -> Scene:
-    """The tests' toy layouts: five spheres (radius 12-18 mm) across the diagonal, jittered."""
-    rng = np.random.default_rng(layout)
-    s, g = np.array(START), np.array(GOAL)
-    t = np.array([0.2, 0.35, 0.5, 0.65, 0.8])
-    centres = s + t[:, None] * (g - s) + rng.uniform(-10, 10, (5, 3))
-    radii = rng.uniform(12, 18, 5)
-    return Scene.create([[0, 0, 0], [100, 100, 100]],
-                        [{"center": c.tolist(), "radius": float(r)}
-                         for c, r in zip(centres, radii)], margin)
 
 
 def random_face(n: int, seed: int) -> np.ndarray:

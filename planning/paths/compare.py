@@ -22,7 +22,25 @@ from kinematics.numbers import finite_or_none
 from .planners import ALGORITHMS, PathResult, plan_path
 from .scene import Scene
 
-__all__ = ["CompareRow", "compare_planners"]
+__all__ = ["CompareRow", "compare_planners", "toy_scene", "TOY_START", "TOY_GOAL"]
+
+
+#: Start and goal (mm) of the toy scenes: opposite corners of a 100 mm cube.
+TOY_START, TOY_GOAL = (1.0, 1.0, 1.0), (100.0, 100.0, 100.0)
+
+
+def toy_scene(layout: int = 0, margin: float = 0.0) -> Scene:
+    """A toy scene like paper 000's §4.4 (which prints no obstacle positions): five spheres
+    of radius 12-18 mm across the diagonal from ``TOY_START`` to ``TOY_GOAL`` of a 100 mm
+    cube, jittered by up to 10 mm; ``layout`` seeds the jitter and the radii."""
+    rng = np.random.default_rng(layout)
+    s, g = np.array(TOY_START), np.array(TOY_GOAL)
+    t = np.array([0.2, 0.35, 0.5, 0.65, 0.8])
+    centres = s + t[:, None] * (g - s) + rng.uniform(-10, 10, (5, 3))
+    radii = rng.uniform(12, 18, 5)
+    return Scene.create([[0, 0, 0], [100, 100, 100]],
+                        [{"center": c.tolist(), "radius": float(r)}
+                         for c, r in zip(centres, radii)], margin)
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ import pytest
 from scipy.stats import ranksums
 
 from planning.paths import plan_path
-from planning.paths.scene import Scene
+from planning.paths.compare import toy_scene
 
 START, GOAL = [1.0, 1.0, 1.0], [100.0, 100.0, 100.0]
 SEEDS = range(30)
@@ -48,18 +48,6 @@ BUDGET = {
 PAPER = {"wolfpack_improved": (66.731, 66.863), "wolfpack": (68.315, 69.561),
          "aca": (104.516, 106.256), "ga": (75.261, 76.163), "afsa": (86.631, 89.901)}
 
-
-def toy_scene() -> Scene:
-    """Layout 0 of tests/planning/test_path_planners.py: five spheres (radius 12-18 mm)
-    across the start-goal diagonal, jittered."""
-    rng = np.random.default_rng(0)
-    s, g = np.array(START), np.array(GOAL)
-    t = np.array([0.2, 0.35, 0.5, 0.65, 0.8])
-    centres = s + t[:, None] * (g - s) + rng.uniform(-10, 10, (5, 3))
-    radii = rng.uniform(12, 18, 5)
-    return Scene.create([[0, 0, 0], [100, 100, 100]],
-                        [{"center": c.tolist(), "radius": float(r)}
-                         for c, r in zip(centres, radii)])
 
 
 @pytest.fixture(scope="module")

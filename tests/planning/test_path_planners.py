@@ -15,6 +15,7 @@ from planning.optimisers.wolfpack import WolfPack
 from planning.optimisers.wolfpack_improved import ImprovedWolfPack, levy_steps
 from planning.paths import ALGORITHMS, PathEncoding, path_length, plan_path, shortcut
 from planning.paths.auto import certified_shortest_path, plan_auto
+from planning.paths.compare import toy_scene
 from planning.paths.scene import Scene
 from planning.status import PlanStatus
 
@@ -32,17 +33,6 @@ LIGHT = {
     "auto": {},
 }
 
-
-def toy_scene(layout: int, margin: float = 0.0) -> Scene:
-    """Five spheres (radius 12-18 mm) placed across the start-goal diagonal, jittered."""
-    rng = np.random.default_rng(layout)
-    s, g = np.array(START), np.array(GOAL)
-    t = np.array([0.2, 0.35, 0.5, 0.65, 0.8])
-    centres = s + t[:, None] * (g - s) + rng.uniform(-10, 10, (5, 3))
-    radii = rng.uniform(12, 18, 5)
-    return Scene.create([[0, 0, 0], [100, 100, 100]],
-                        [{"center": c.tolist(), "radius": float(r)}
-                         for c, r in zip(centres, radii)], margin)
 
 
 def assert_verified(scene: Scene, res) -> None:
