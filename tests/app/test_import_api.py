@@ -130,6 +130,15 @@ def test_import_serves_stores_and_exports_the_robot(app_dir):
     ik = client.post("/robots/glt_urdf/ik", json={"pose": poses[0].tolist(),
                                                   "method": "numeric"})
     assert ik.status_code == 200, ik.text
+    assert ik.json()["results"][0]["success"] is True
+    ws = client.post("/robots/glt_urdf/workspace", json={"samples": 2000, "seed": 5,
+                                                         "return_points": 10})
+    assert ws.status_code == 200 and ws.json()["samples"] == 2000
+    traj = client.post("/trajectories", json={
+        "method": "quintic", "robot": "glt_urdf", "durations": [2.0], "dt": 0.1,
+        "waypoints": [q[0].tolist(), q[1].tolist()]})
+    assert traj.status_code == 200, traj.text
+    assert np.allclose(traj.json()["q"][-1], q[1])
 
     # The export names the meshes and imports again to the same FK.
     urdf = client.get("/robots/glt_urdf/urdf")
