@@ -49,7 +49,9 @@ def _add_flag(p: argparse.ArgumentParser, name: str, info: FieldInfo, current: A
         default = "%(default)s" if info.repr else "set"
     kind = _value_type(info.annotation)
     if kind is bool:
-        p.add_argument(flag_name(name), action="store_true", default=current,
+        # On by default: --name / --no-name; off by default: --name alone.
+        action = argparse.BooleanOptionalAction if current else "store_true"
+        p.add_argument(flag_name(name), action=action, default=current,
                        help=f"{help_text} (env {env}; default {default})")
         return
     kwargs: dict[str, Any] = {}

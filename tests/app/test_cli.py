@@ -123,6 +123,13 @@ def test_defaults_flags_and_environment(monkeypatch, tmp_path):
     assert s.port == 9200 and s.data_dir == tmp_path and s.workers == 3
     assert s.jobs_backend == "dask://127.0.0.1:8786" and s.viewer_port == 9201
 
+    # A setting on by default is turned off by --no-<name>, or by its variable.
+    assert parse_args([]).prebuild_collision is True
+    assert parse_args(["--no-prebuild-collision"]).prebuild_collision is False
+    monkeypatch.setenv("KINOPLAN_PREBUILD_COLLISION", "false")
+    assert parse_args([]).prebuild_collision is False
+    assert parse_args(["--prebuild-collision"]).prebuild_collision is True
+
 
 def _free_port() -> int:
     with socket.socket() as sock:
