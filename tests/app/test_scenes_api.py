@@ -211,7 +211,7 @@ def test_collision_answers_follow_the_geometry(apps):
     assert r.json()["detail"][0]["loc"][:4] == ["body", "scene", "objects", 0]
 
     r = client.post("/robots/glt_palletizer/collision",
-                    json={"q": [q.tolist()] * 10_001, "scene": "probe"})
+                    json={"q": [q.tolist()] * 1_001, "scene": "probe"})
     assert r.status_code == 413 and r.json()["detail"][0]["loc"][:2] == ["body", "q"]
 
     described = client.get("/robots/glt_palletizer/collision").json()

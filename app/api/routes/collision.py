@@ -22,12 +22,12 @@ from .scenes import get_scenes
 router = APIRouter(prefix="/robots", tags=["collision"])
 log = logging.getLogger(__name__)
 
-#: Most configurations in one collision query (413 above). A configuration of an imported
-#: robot can cost milliseconds (exact distances of near misses on big meshes): 10,000 keeps
-#: one request within about a minute of one compute worker.
-MAX_COLLISION_CONFIGS = 10_000
+#: Most configurations in one collision query (413 above). A colliding or nearly colliding
+#: configuration costs up to a few milliseconds (the exact stage: FCL on the real shapes, and
+#: exact distances of near misses on big meshes), so 1,000 keeps one request within seconds.
+MAX_COLLISION_CONFIGS = 1_000
 #: Above this many configurations a query runs in a compute worker.
-HEAVY_COLLISION_CONFIGS = 1_000
+HEAVY_COLLISION_CONFIGS = 100
 #: Largest ``margin`` (mm).
 MAX_MARGIN_MM = 100_000.0
 
