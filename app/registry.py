@@ -26,14 +26,12 @@ COLLISION_FILE = "collision.model"
 
 
 def build_collision(robot: Any) -> bytes:
-    """Build the collision model of an imported robot (``ImportedRobot``) or of a
-    ``RobotModel`` and answer it as bytes (``RobotCollisionModel.to_bytes``); runs in a
-    compute worker for imported robots (it takes seconds)."""
+    """Build the collision model of an imported robot (``ImportedRobot``) and answer it as
+    bytes (``RobotCollisionModel.to_bytes``); it takes seconds, so the service runs it in a
+    compute worker."""
     from planning.collision import RobotCollisionModel
 
-    cm = (RobotCollisionModel.from_model(robot) if isinstance(robot, RobotModel)
-          else RobotCollisionModel.from_imported(robot))
-    return cm.to_bytes()
+    return RobotCollisionModel.from_imported(robot).to_bytes()
 
 
 class RobotConflictError(ValueError):
@@ -206,8 +204,8 @@ class RobotRegistry:
         entry = self.stored_collision(robot_id)
         if entry is not None:
             return entry
-        robot = self.imported(robot_id)
-        return self.keep_collision(robot_id, build_collision(robot or self.get(robot_id)))
+        # Only an imported robot's model is ever missing (stored_collision builds the rest).
+        return self.keep_collision(robot_id, build_collision(self.imported(robot_id)))
 
     def stored_collision(self, robot_id: str) -> tuple[Any, str] | None:
         """The kept or stored collision model and its token; None when it must be built.
@@ -216,13 +214,14 @@ class RobotRegistry:
         cached = self._collision.get(robot_id)
         if cached is not None and cached[0] is model:
             return cached[1], cached[2]
+        from planning.collision import RobotCollisionModel
+
         robot = self.imported(robot_id)
         if robot is None:  # capsules: built in milliseconds, never stored
-            return self.keep_collision(robot_id, build_collision(model))
+            return self._keep(robot_id, model, RobotCollisionModel.from_model(model))
         data = self._store.robot_file(robot_id, COLLISION_FILE) if self._store else None
         if data is None:
             return None
-        from planning.collision import RobotCollisionModel
 
         try:
             cm = RobotCollisionModel.from_bytes(data, robot)

@@ -10,6 +10,9 @@ then on ``--configs`` random in-limit configurations (seed ``--seed``, used nowh
   python-fcl on the meshes (the reference of ``bench_collision.py``, written without the
   service's checker): false "free" answers (must be 0), false "collides" answers, and the
   time per query, one configuration per request and in one request of all of them;
+* every MotionBenchMaker scene of ``../shared/mbm-dev`` stored as a MoveIt planning scene
+  (``POST /scenes``), read back as MoveIt (``GET /scenes/{id}?format=moveit``), stored again:
+  the largest difference between the two object lists (poses and sizes, mm);
 * a restart: the service started again on the same data directory answers the same FK.
 
 Run: ``.venv/bin/python benchmarks/bench_import_http.py [--configs 1000] [--seed 20261201]``.
@@ -30,6 +33,7 @@ from pathlib import Path
 
 import httpx
 import numpy as np
+import yaml
 import yourdfpy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -77,10 +81,34 @@ def reference_fk(urdf: Path, names: list[str], scale: np.ndarray, root: str, tip
     return out
 
 
+def moveit_round_trips(client: httpx.Client) -> None:
+    """Every MotionBenchMaker scene in, out as MoveIt, in again: the largest difference."""
+    files = sorted((SHARED / "mbm-dev").glob("*/*/scene*.yaml"))
+    worst, t0 = 0.0, time.perf_counter()
+    for k, path in enumerate(files):
+        moveit = yaml.safe_load(path.read_text())
+        first = client.post("/scenes", json={"id": f"mbm{k}", "moveit": moveit})
+        back = client.get(f"/scenes/mbm{k}", params={"format": "moveit"})
+        again = client.post("/scenes", json={"id": f"mbm{k}b", "moveit": back.json()})
+        if first.status_code != 201 or again.status_code != 201:
+            print(f"{path}: {first.status_code} / {again.status_code}")
+            continue
+        for a, b in zip(first.json()["objects"], again.json()["objects"], strict=True):
+            assert a["type"] == b["type"] and a["id"] == b["id"]
+            for key in ("pose", "size", "radius", "height"):
+                if key in a:
+                    worst = max(worst, float(np.abs(np.subtract(a[key], b[key])).max()))
+    print(f"MoveIt scenes over HTTP: {len(files)} MotionBenchMaker scenes stored, read back as "
+          f"MoveIt and stored again in {time.perf_counter() - t0:.1f} s; largest difference "
+          f"{worst:.1e} mm")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--configs", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=20261201)
+    ap.add_argument("--sections", default="scenes,robots",
+                    help="comma-separated: scenes (MoveIt round trips), robots")
     ap.add_argument("--single", type=int, default=100,
                     help="configurations sent one per request for the single-query time")
     args = ap.parse_args()
@@ -91,8 +119,11 @@ def main() -> None:
     proc = start_service(data_dir, port)
     client = httpx.Client(base_url=base, timeout=600)
     fk_answers = {}
+    sections = set(args.sections.split(","))
     try:
-        for name, group in ROBOTS:
+        if "scenes" in sections:
+            moveit_round_trips(client)
+        for name, group in (ROBOTS if "robots" in sections else ()):
             folder = SHARED / "robots" / name
             archive = zip_folder(folder)
             t0 = time.perf_counter()
