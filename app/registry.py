@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import logging
-import threading
 import uuid
 from typing import Any
 
@@ -13,7 +12,7 @@ from kinematics.library import builtin_models
 from kinematics.model import RobotModel
 from kinematics.rigs import BUILTIN_RIG_IDS, Rig, builtin_rig
 
-from .store import DuplicateError, Store, StoreError
+from .store import DuplicateError, Store, StoreMirror
 
 __all__ = ["RobotRegistry", "RobotConflictError", "ReadOnlyRobotError"]
 
@@ -46,7 +45,7 @@ class ReadOnlyRobotError(ValueError):
     """Built-in robots cannot be changed or removed."""
 
 
-class RobotRegistry:
+class RobotRegistry(StoreMirror):
     """The robots the service knows: the built-ins (read-only) and custom robots.
 
     Custom robots live in ``store`` and are parsed once into ``RobotModel``s kept in memory
@@ -62,9 +61,7 @@ class RobotRegistry:
         self._builtin = builtin_models() | {
             arm.id: arm for rig in self.rigs.values() for arm in rig.arms.values()
         }
-        self._store = store
-        self._lock = threading.Lock()
-        self._generation = store.generation if store is not None else 0
+        super().__init__(store)
         # Imported robots: the description JSON of each (meshes are read from the store on
         # first use and kept in ``_imported``; ``_collision`` caches collision models).
         self._descriptions: dict[str, dict] = {}
@@ -97,21 +94,14 @@ class RobotRegistry:
         self._collision = {}
         return custom
 
+    def _reload(self) -> None:
+        self._custom = self._load()
+
     def _current(self) -> dict[str, RobotModel]:
         """The custom robots, loaded again first when the store has moved on to another file
-        or works again after it could not be read (its ``generation`` changed)."""
-        store = self._store
-        if store is not None and store.generation != self._generation:
-            with self._lock:
-                generation = store.generation
-                if generation != self._generation:
-                    try:
-                        self._custom = self._load()
-                    except StoreError:  # still unusable: serve what we have, retry later
-                        return self._custom
-                    self._generation = generation
-                    log.info("custom robots loaded again from the store (%d)",
-                             len(self._custom))
+        or works again after it could not be read (``StoreMirror``)."""
+        if self._refresh():
+            log.info("custom robots loaded again from the store (%d)", len(self._custom))
         return self._custom
 
     def ids(self) -> list[str]:

@@ -13,12 +13,11 @@ from __future__ import annotations
 import io
 import json
 import logging
-import threading
 from typing import Any
 
 import numpy as np
 
-from .store import DuplicateError, Store, StoreError
+from .store import DuplicateError, Store, StoreMirror
 
 __all__ = ["SceneRegistry", "SceneConflictError", "MeshInUseError", "mesh_bytes", "mesh_arrays"]
 
@@ -51,15 +50,13 @@ def _mesh_ids(objects: list[dict]) -> set[str]:
     return {str(o["mesh"]) for o in objects if o.get("type") == "mesh" and "mesh" in o}
 
 
-class SceneRegistry:
+class SceneRegistry(StoreMirror):
     """The scenes and meshes the service knows (all stored; none built in).
 
     Thread-safe as the robot registry: writers hold a lock and publish new dicts."""
 
     def __init__(self, store: Store | None = None) -> None:
-        self._store = store
-        self._lock = threading.Lock()
-        self._generation = store.generation if store is not None else 0
+        super().__init__(store)
         self._scenes: dict[str, dict] = {}
         self._meshes: dict[str, dict] = {}
         self._built: dict[str, Any] = {}
@@ -87,32 +84,23 @@ class SceneRegistry:
                 log.error("skipping stored mesh '%s': %s", row.id, exc)
         self._scenes, self._meshes, self._built, self._mesh_cache = scenes, meshes, {}, {}
 
-    def _fresh(self) -> None:
-        store = self._store
-        if store is not None and store.generation != self._generation:
-            with self._lock:
-                generation = store.generation
-                if generation != self._generation:
-                    try:
-                        self._load()
-                    except StoreError:
-                        return
-                    self._generation = generation
+    def _reload(self) -> None:
+        self._load()
 
     # ---- meshes -------------------------------------------------------------------------
     def mesh_ids(self) -> list[str]:
-        self._fresh()
+        self._refresh()
         return list(self._meshes)
 
     def mesh_info(self, mesh_id: str) -> dict:
         """What is known of mesh ``mesh_id`` (counts, bounds); ``KeyError`` if unknown."""
-        self._fresh()
+        self._refresh()
         return self._meshes[mesh_id]
 
     def add_mesh(self, mesh_id: str, vertices: np.ndarray, faces: np.ndarray,
                  filename: str) -> dict:
         """Store a mesh (mm); ``SceneConflictError`` if the id is taken."""
-        self._fresh()
+        self._refresh()
         lo, hi = vertices.min(axis=0), vertices.max(axis=0)
         info = {"filename": filename, "vertices": int(len(vertices)),
                 "triangles": int(len(faces)), "bounds": [lo.tolist(), hi.tolist()]}
@@ -135,7 +123,7 @@ class SceneRegistry:
 
     def mesh(self, mesh_id: str) -> tuple[np.ndarray, np.ndarray]:
         """``(vertices, faces)`` of a stored mesh; ``KeyError`` if unknown."""
-        self._fresh()
+        self._refresh()
         cached = self._mesh_cache.get(mesh_id)
         if cached is not None:
             return cached
@@ -151,7 +139,7 @@ class SceneRegistry:
     def remove_mesh(self, mesh_id: str) -> None:
         """Delete a mesh: ``KeyError`` if unknown, ``MeshInUseError`` naming the scenes that
         use it."""
-        self._fresh()
+        self._refresh()
         with self._lock:
             if mesh_id not in self._meshes:
                 raise KeyError(mesh_id)
@@ -168,12 +156,12 @@ class SceneRegistry:
 
     # ---- scenes -------------------------------------------------------------------------
     def ids(self) -> list[str]:
-        self._fresh()
+        self._refresh()
         return list(self._scenes)
 
     def describe(self, scene_id: str) -> dict:
         """The stored scene (id, name, objects, created); ``KeyError`` if unknown."""
-        self._fresh()
+        self._refresh()
         return self._scenes[scene_id]
 
     def build(self, data: dict) -> Any:
@@ -185,7 +173,7 @@ class SceneRegistry:
 
     def add(self, scene_id: str, data: dict) -> dict:
         """Validate, store and serve a scene; ``SceneConflictError`` if the id is taken."""
-        self._fresh()
+        self._refresh()
         if scene_id in self._scenes:
             raise SceneConflictError(f"scene id '{scene_id}' is taken")
         scene = self.build(data)
@@ -207,7 +195,7 @@ class SceneRegistry:
 
     def get(self, scene_id: str) -> Any:
         """The scene's collision geometry (built on first use); ``KeyError`` if unknown."""
-        self._fresh()
+        self._refresh()
         built = self._built.get(scene_id)
         if built is not None:
             return built
@@ -219,7 +207,7 @@ class SceneRegistry:
 
     def remove(self, scene_id: str) -> None:
         """Delete a scene; ``KeyError`` if unknown."""
-        self._fresh()
+        self._refresh()
         with self._lock:
             if scene_id not in self._scenes:
                 raise KeyError(scene_id)

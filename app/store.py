@@ -31,7 +31,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 __all__ = ["Store", "StoredRobot", "JobRecord", "DuplicateError", "StoreError",
-           "STORE_FILENAME", "now_iso"]
+           "StoreMirror", "STORE_FILENAME", "now_iso"]
 
 log = logging.getLogger(__name__)
 
@@ -202,6 +202,37 @@ class StoredMesh:
     id: str
     info_json: str
     created: str
+
+
+class StoreMirror:
+    """Base of the registries that keep rows of a store in memory: ``_refresh()`` calls
+    ``_reload()`` (the subclass's: read the rows again) once the store has moved on to another
+    file or works again after it could not be read (its ``generation`` changed); while the
+    store is still unusable what was loaded is kept and the next call tries again."""
+
+    def __init__(self, store: Store | None) -> None:
+        self._store = store
+        self._lock = threading.Lock()
+        self._generation = store.generation if store is not None else 0
+
+    def _reload(self) -> None:  # pragma: no cover - every subclass has its own
+        raise NotImplementedError
+
+    def _refresh(self) -> bool:
+        """Whether the rows were read again now."""
+        store = self._store
+        if store is None or store.generation == self._generation:
+            return False
+        with self._lock:
+            generation = store.generation
+            if generation == self._generation:
+                return False
+            try:
+                self._reload()
+            except StoreError:  # still unusable: serve what we have, retry later
+                return False
+            self._generation = generation
+            return True
 
 
 class Store:
