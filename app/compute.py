@@ -74,6 +74,9 @@ def _warm() -> None:
     from kinematics.fast import start_warm_up
 
     start_warm_up()
+    from planning.motion import start_warm_up as start_motion_warm_up
+
+    start_motion_warm_up()
 
 
 class ComputePool:

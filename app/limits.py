@@ -49,6 +49,7 @@ ROUTE_BODY_CAPS: dict[str, int] = {
     "/scenes": 24 * MiB,
     "/meshes": 40 * MiB,
     "/robots/{robot_id}/collision": 4 * MiB,
+    "/robots/{robot_id}/motion": 4 * MiB,
 }
 #: Body cap of every other route: single configurations, single poses, small objects.
 DEFAULT_BODY_CAP = 256 * 1024

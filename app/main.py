@@ -20,6 +20,7 @@ from .api.routes import (
     health,
     jobs,
     kinematics,
+    motion,
     rigs,
     robots,
     scenes,
@@ -134,6 +135,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.include_router(rigs.router)
     api.include_router(kinematics.router)
     api.include_router(collision.router)
+    api.include_router(motion.router)
     api.include_router(cylinders.router)
     api.include_router(trajectories.router)
     api.include_router(jobs.router)

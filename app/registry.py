@@ -45,6 +45,14 @@ class ReadOnlyRobotError(ValueError):
     """Built-in robots cannot be changed or removed."""
 
 
+class CollisionNotReady(RuntimeError):
+    """An imported robot's collision model is still being built."""
+
+    def __init__(self, robot_id: str, message: str):
+        super().__init__(message)
+        self.robot_id = robot_id
+
+
 class RobotRegistry(StoreMirror):
     """The robots the service knows: the built-ins (read-only) and custom robots.
 
@@ -219,6 +227,35 @@ class RobotRegistry(StoreMirror):
             log.warning("stored collision model of '%s' not used: %s", robot_id, exc)
             return None
         return self._keep(robot_id, model, cm)
+
+    def robot_files(self, robot_id: str) -> dict[str, str] | None:
+        """What a worker without the store needs to rebuild an imported robot and its
+        collision model, as base64 text by name: ``description`` (its JSON), ``collision``
+        (the built model) and ``mesh:<key>`` for each mesh of its collision geometry. None
+        for built-in and model-JSON robots; ``CollisionNotReady`` while the model is still
+        being built; ``KeyError`` if unknown."""
+        import base64
+        import json
+
+        robot = self.imported(robot_id)
+        if robot is None:
+            return None
+        entry = self.stored_collision(robot_id)
+        if entry is None:
+            raise CollisionNotReady(robot_id, f"the collision model of '{robot_id}' is "
+                                    "still being built; try again in a minute")
+        from kinematics.urdf_import import mesh_to_bytes
+
+        def b64(data: bytes) -> str:
+            return base64.b64encode(data).decode("ascii")
+
+        keys = sorted({g.mesh for link in robot.links for g in link.collision
+                       if g.kind == "mesh"})
+        out = {"description": b64(json.dumps(robot.to_dict()).encode()),
+               "collision": b64(entry[0].to_bytes())}
+        for key in keys:
+            out[f"mesh:{key}"] = b64(mesh_to_bytes(robot.meshes[key]))
+        return out
 
     def keep_collision(self, robot_id: str, data: bytes) -> tuple[Any, str]:
         """Keep (and, for an imported robot, store) a collision model built by

@@ -16,10 +16,10 @@ and import the module below.
 
 from __future__ import annotations
 
-from . import drilling_kinds, kinds, model_kinds, path_kinds, tracking_kinds
+from . import drilling_kinds, kinds, model_kinds, motion_kinds, path_kinds, tracking_kinds
 from .kinds import KINDS, JobKind, get_kind
 
 __all__ = ["KINDS", "JobKind", "get_kind", "KIND_MODULES"]
 
 #: The modules that define kinds.
-KIND_MODULES = (kinds, model_kinds, path_kinds, tracking_kinds, drilling_kinds)
+KIND_MODULES = (kinds, model_kinds, path_kinds, tracking_kinds, drilling_kinds, motion_kinds)

@@ -92,9 +92,18 @@ class Params(StrictModel):
     returns it."""
 
     _robot_model: RobotModel | None = PrivateAttr(None)
+    _imported: tuple[Any, Any] | None = PrivateAttr(None)
 
     def attach_robot_model(self, model: RobotModel) -> None:
         self._robot_model = model
+
+    def attach_imported(self, robot: Any, collision_model: Any) -> None:
+        """Attach an imported robot and its collision model (from the job's payload)."""
+        self._imported = (robot, collision_model)
+
+    def imported(self) -> tuple[Any, Any] | None:
+        """``(ImportedRobot, RobotCollisionModel)`` of an imported robot, else None."""
+        return self._imported
 
     def robot_model(self) -> RobotModel:
         """The model of the job's robot: the one attached, else the built-in robot of that
@@ -218,12 +227,15 @@ class JobPayload(BaseModel):
 
     params: dict[str, JsonValue]
     robot_model: dict[str, JsonValue] | None = None
+    #: An imported robot's description, collision model and collision meshes (base64 by
+    #: name, ``app.registry.RobotRegistry.robot_files``), for kinds that need its geometry.
+    robot_files: dict[str, str] | None = None
 
     @classmethod
     def from_stored(cls, data: Mapping[str, Any]) -> JobPayload:
         """The payload of a stored job; also reads the older layout (the params with the
         model under ``_model``) of jobs queued before this one existed."""
-        if set(data) == {"params", "robot_model"}:
+        if "params" in data and set(data) <= {"params", "robot_model", "robot_files"}:
             return cls.model_validate(data)
         params = dict(data)
         return cls(params=params, robot_model=params.pop("_model", None))
@@ -239,7 +251,37 @@ def execute(name: str, payload: Mapping[str, Any], progress: Progress) -> str:
         from kinematics.model import RobotModel
 
         params.attach_robot_model(RobotModel.from_dict(job.robot_model))
+    if job.robot_files:
+        params.attach_imported(*_imported_of(job.robot_files))
     return kind.result_json(kind.run(params, progress))
+
+
+_IMPORTED: dict[str, tuple[Any, Any]] = {}
+
+
+def _imported_of(files: Mapping[str, str]) -> tuple[Any, Any]:
+    """``(ImportedRobot, RobotCollisionModel)`` rebuilt from a payload's ``robot_files``
+    (the last few kept per process: a batch of jobs on one robot decodes it once)."""
+    import base64
+    import hashlib
+    import json
+
+    key = hashlib.sha256(files["collision"].encode()).hexdigest() + \
+        hashlib.sha256(files["description"].encode()).hexdigest()
+    hit = _IMPORTED.get(key)
+    if hit is not None:
+        return hit
+    from kinematics.urdf_import import ImportedRobot, mesh_from_bytes
+    from planning.collision import RobotCollisionModel
+
+    meshes = {k[5:]: mesh_from_bytes(base64.b64decode(v)) for k, v in files.items()
+              if k.startswith("mesh:")}
+    robot = ImportedRobot.from_dict(json.loads(base64.b64decode(files["description"])), meshes)
+    cm = RobotCollisionModel.from_bytes(base64.b64decode(files["collision"]), robot)
+    if len(_IMPORTED) >= 4:
+        _IMPORTED.pop(next(iter(_IMPORTED)))
+    _IMPORTED[key] = (robot, cm)
+    return robot, cm
 
 
 # ---- sleep: a diagnostic kind to check the pool itself ----------------------------------

@@ -10,11 +10,15 @@ from pydantic import ValidationError
 
 from kinematics.errors import FieldError
 
-from ..registry import RobotRegistry
+from ..registry import CollisionNotReady, RobotRegistry
 from ..store import JobRecord, Store
 from .caps import DEFAULT_TIME_LIMIT_S, ParamsLimitError, check_params
 from .catalog import KINDS, get_kind
 from .kinds import JobPayload
+from .motion_kinds import prepare_motion
+
+#: Kinds whose workers need an imported robot's geometry (``JobPayload.robot_files``).
+GEOMETRY_KINDS = frozenset({"motion"})
 
 __all__ = ["JobManager", "JobParamsError", "QueueFullError", "JobStateError",
            "MAX_ATTEMPTS", "make_backend"]
@@ -129,6 +133,8 @@ class JobManager:
                                  f"service, got {time_limit_s:g}")
         try:  # size first: an oversized submission costs no validation
             check_params(params, spec.max_params_bytes)
+            if kind == "motion":  # its stored scene and meshes inline, checked on the robot
+                params = prepare_motion(params, self.scenes, self.registry)
         except ParamsLimitError as exc:
             raise JobParamsError(exc.loc, exc.message, exc.status) from None
         if kind in SCENE_KINDS:
@@ -143,11 +149,17 @@ class JobManager:
         if spec.needs_robot or robot is not None:
             try:
                 payload.robot_model = self.registry.get(robot).to_dict()
+                if kind in GEOMETRY_KINDS:
+                    payload.robot_files = self.registry.robot_files(robot)
             except KeyError:
                 raise JobParamsError(["params", "robot"], f"unknown robot '{robot}'",
                                      status=404) from None
+            except CollisionNotReady as exc:
+                raise JobParamsError(["params", "robot"], str(exc), status=409) from None
         job = self.store.add_job(uuid.uuid4().hex[:16], kind, clean,
-                                 payload.model_dump(mode="json"),
+                                 payload.model_dump(mode="json", exclude=(
+                                     {"robot_files"} if payload.robot_files is None
+                                     else None)),
                                  max_queued=self.max_queued, time_limit_s=time_limit_s)
         if job is None:
             raise QueueFullError(f"{self.max_queued} jobs are already queued; try again later")

@@ -208,7 +208,15 @@ class CompiledScene:
                               (s.balls[:, :3] + s.balls[:, 3:]).max(0))
         self.lo = np.min([a for a, _ in self.bounds], axis=0) if self.n else np.zeros(3)
         self.hi = np.max([b for _, b in self.bounds], axis=0) if self.n else np.zeros(3)
-        self._build_grid()
+        self._grid: Any = False
+
+    @property
+    def grid(self) -> Any:
+        """The distance grid ``(lo, h, shape, values)`` (None for an empty scene), built on
+        first use."""
+        if self._grid is False:
+            self._build_grid()
+        return self._grid
 
     # ---- distances --------------------------------------------------------------------------
     def object_distance(self, P: np.ndarray) -> np.ndarray:
@@ -231,7 +239,7 @@ class CompiledScene:
         """Distance (capped at ``GRID_CAP``) from each grid node to the nearest object,
         computed object by object on the nodes within ``GRID_CAP`` of it."""
         if self.n == 0:
-            self.grid = None
+            self._grid = None
             return
         lo, hi = self.lo - 1.0, self.hi + 1.0
         ext = hi - lo
@@ -251,7 +259,7 @@ class CompiledScene:
                 d[s:s + 65536] = self._one(X[s:s + 65536], i)
             block = values[i0[0]:i1[0] + 1, i0[1]:i1[1] + 1, i0[2]:i1[2] + 1]
             np.minimum(block, d.reshape(block.shape), out=block)
-        self.grid = (lo, h, shape, values.ravel())
+        self._grid = (lo, h, shape, values.ravel())
 
     def _one(self, P: np.ndarray, i: int) -> np.ndarray:
         """Signed distance ``(K,)`` of points to object ``i``."""

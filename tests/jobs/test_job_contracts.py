@@ -90,6 +90,10 @@ CASES = [
                                    "iterations": 1, "runs": 2}),
     ("sequence", "sequence", {"holes": FACE, "start": [9000, 0, -1000]}),
     ("multiarm", "multiarm", {"holes": SIDES, "output_dt": 2.0}),
+    ("motion", "motion", {"robot": "glt_palletizer", "start": [0, 0, 0, 0, 0.5, 0],
+                          "goal": {"q": [1, 0.3, -0.3, 0, 0.5, 0]}, "time_limit": 2}),
+    ("motion_batch", "motion", {"robot": "glt_palletizer", "time_limit": 2, "problems": [
+        {"start": [0, 0, 0, 0, 0.5, 0], "goal": {"q": [1, 0.3, -0.3, 0, 0.5, 0]}}]}),
 ]
 
 

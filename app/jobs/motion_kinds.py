@@ -1,0 +1,440 @@
+"""Job kind ``motion``: joint-space motion planning of a robot in a scene (``planning.motion``),
+one problem or a batch of them sharing the robot, the scene and the planner settings.
+
+The body is that of ``POST /robots/{id}/motion`` plus ``robot``, with ``time_limit`` up to
+60 s per problem, and ``problems`` (at most 1,000 ``{start, goal, seed?, time_limit?}``) in
+place of ``start`` and ``goal`` for a batch. The models here (goal, shared settings, one
+problem's result) are the route's too.
+
+At submission (``prepare_motion``, called by the job manager before the params are
+validated) the job gets everything its worker cannot look up: a stored scene named by id
+becomes its objects inline (stored meshes with their vertices), so the job's params record
+the geometry it planned in; and the params are checked against the robot (joint counts,
+goal pose), so a wrong problem is a 422 naming it, not a failed job. A worker has the
+robot's model, not the service's store: built-in and JSON robots plan with the collision
+model built from the model (a capsule per link); for an imported robot the job's payload
+carries its description, its stored collision model and its collision meshes
+(``JobPayload.robot_files``), rebuilt once per worker process.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+from collections.abc import Mapping
+from typing import Annotated, Any, Literal
+
+from pydantic import (
+    Field,
+    JsonValue,
+    ValidationError,
+    create_model,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
+
+from kinematics.errors import FieldError
+from planning.motion import DEFAULT_RESOLUTION, MAX_RESOLUTION, PLANNERS, MotionStatus
+from planning.motion.request import (
+    DEFAULT_TIME_LIMIT_S,
+    MAX_MARGIN_MM,
+    MAX_PROBLEMS,
+    MAX_TIME_LIMIT_S,
+    MotionRequest,
+    parse_motion_problems,
+)
+
+from ..fields import JointVector, StrictModel, bounded_list, pose_type
+from .caps import ParamsLimitError
+from .kinds import MAX_SEED, JobKind, Params, Progress, Result, pick, register
+
+__all__ = [
+    "GoalIn",
+    "MotionSettings",
+    "ProblemIn",
+    "MotionParams",
+    "MotionTrajectoryOut",
+    "MotionOut",
+    "MotionSummary",
+    "MotionJobResult",
+    "MAX_MOTION_PARAMS_BYTES",
+    "SCENE_KEYS",
+    "collision_scene",
+    "motion_answer",
+    "warm_up",
+    "summarize",
+    "prepare_motion",
+    "run_motion",
+]
+
+#: The planners (``planning.motion.PLANNERS``).
+Planner = Literal[PLANNERS]  # type: ignore[valid-type]
+#: How planning ended (``planning.motion.MotionStatus``).
+Status = Literal[tuple(s.value for s in MotionStatus)]  # type: ignore[valid-type]
+#: Most bytes of JSON a motion job's params take, a stored scene filled in included (413).
+MAX_MOTION_PARAMS_BYTES = 4 * 1024 * 1024
+#: Keys of an inline scene (``id``: the stored scene it was filled in from).
+SCENE_KEYS = ("objects", "moveit", "name", "id")
+#: Longest scene id.
+MAX_SCENE_ID = 64
+
+SceneIn = Annotated[str, Field(min_length=1, max_length=MAX_SCENE_ID)] | dict[str, Any] | None
+
+
+def _scene_description(stored: str) -> str:
+    return ("A stored scene's id" + stored + ", an inline scene ({\"objects\": [...]} and/or "
+            "{\"moveit\": {...}}, mm), or null (self-collision only)")
+
+
+class GoalIn(StrictModel):
+    """Where the move ends: joint values ``q`` or the tool pose ``pose`` (exactly one)."""
+
+    q: JointVector | None = Field(None, description="rad / mm per joint, the robot's order")
+    pose: pose_type(4) | None = Field(  # type: ignore[valid-type]
+        None, description="T_world_tool, 4x4 (mm): the planner picks the IK branch")
+
+    @model_validator(mode="after")
+    def _one(self) -> GoalIn:
+        if (self.q is None) == (self.pose is None):
+            raise ValueError('give exactly one of "q" (joint values) and "pose" (the tool '
+                             "pose, 4x4 mm)")
+        return self
+
+
+class MotionSettings(StrictModel):
+    """What a motion request and a motion job share: the scene and the planner's settings."""
+
+    scene: SceneIn = Field(None, description=_scene_description(""))
+    planner: Planner = Field("auto", description="'rrt_connect': the first path found, "
+                             "shortened; 'rrt_star': keeps improving for the whole "
+                             "time_limit; 'auto': RRT-Connect, refined by RRT* when the "
+                             "time limit is long")
+    seed: int = Field(0, ge=0, le=MAX_SEED)
+    resolution: float = Field(DEFAULT_RESOLUTION, gt=0, le=MAX_RESOLUTION,
+                              description="Largest joint step between checked states along "
+                              "an edge, rad (x 100 mm for prismatic joints)")
+    simplify: bool = Field(True, description="Shortcut and smooth the path found")
+    self_collision: bool = Field(True, description="Check the robot against itself too")
+    margin: float = Field(0.0, ge=0, le=MAX_MARGIN_MM,
+                          description="mm: closer than this counts as a collision")
+    trajectory: bool = Field(True, description="Time the path (time-optimal within the "
+                             "robot's joint limits)")
+
+
+class ProblemIn(StrictModel):
+    """One problem of a batch; ``seed`` and ``time_limit`` default to the job's."""
+
+    start: JointVector
+    goal: GoalIn
+    seed: int | None = Field(None, ge=0, le=MAX_SEED)
+    time_limit: float | None = Field(None, gt=0, le=MAX_TIME_LIMIT_S, description="s")
+
+
+def _field_error(loc: str, kind: str, message: str) -> ValidationError:
+    """An error of a check across fields, at the field it names (not at the model)."""
+    return ValidationError.from_exception_data("MotionParams", [
+        {"type": PydanticCustomError(kind, message), "loc": (loc,), "input": None}])
+
+
+class MotionParams(Params, MotionSettings):
+    """A motion job: ``start`` and ``goal``, or ``problems``."""
+
+    robot: str = Field(max_length=200, description="Robot id")
+    scene: SceneIn = Field(None, description=_scene_description(
+        " (filled in with its objects when the job is submitted)"))
+    start: JointVector | None = Field(None, description="rad / mm per joint (one problem)")
+    goal: GoalIn | None = Field(None, description="One problem's goal")
+    problems: bounded_list(ProblemIn, MAX_PROBLEMS, min_length=1) | None = Field(  # type: ignore[valid-type]
+        None, description=f"A batch: at most {MAX_PROBLEMS:,} problems, in place of start "
+        "and goal")
+    time_limit: float = Field(DEFAULT_TIME_LIMIT_S, gt=0, le=MAX_TIME_LIMIT_S,
+                              description="s of planning per problem")
+
+    @field_validator("scene")
+    @classmethod
+    def _scene_builds(cls, v: Any) -> Any:
+        if isinstance(v, dict):
+            collision_scene(v)
+        return v
+
+    @model_validator(mode="after")
+    def _one_or_many(self) -> MotionParams:
+        if self.problems is None:
+            for name in ("start", "goal"):
+                if getattr(self, name) is None:
+                    raise _field_error(name, "missing", f"{name} is required (or give "
+                                       "problems)")
+        else:
+            for name in ("start", "goal"):
+                if getattr(self, name) is not None:
+                    raise _field_error(name, "value_error", "give start and goal, or "
+                                       "problems (each with its own start and goal), not both")
+        return self
+
+    def requests(self, model: Any) -> list[MotionRequest]:
+        """The problems checked against ``model`` (``FieldError`` naming the field)."""
+        body = self.model_dump(mode="json", exclude_none=True, exclude={"robot", "scene"})
+        return parse_motion_problems(body, model)
+
+
+# ---- results ----------------------------------------------------------------------------
+class MotionTrajectoryOut(Result):
+    """The path timed within the robot's joint limits, sampled evenly."""
+
+    t: list[float] = Field(description="s")
+    q: list[list[float]] = Field(description="rad / mm per sample")
+    qd: list[list[float]] = Field(description="rad/s / mm/s per sample")
+    qdd: list[list[float]] = Field(description="rad/s² / mm/s² per sample")
+    duration: float = Field(description="s")
+
+
+Pair = Annotated[list[str], Field(min_length=2, max_length=2)]
+
+
+class MotionOut(Result):
+    """One problem's outcome (``planning.motion.MotionResult.to_dict``)."""
+
+    status: Status = Field(description="ok, start_in_collision, goal_in_collision, "
+                           "goal_unreachable, out_of_limits, no_path or timeout")
+    message: str
+    path: list[list[float]] = Field(description="Waypoints, rad / mm per joint; empty unless "
+                                    "ok. Every straight segment between them is free")
+    length: float | None = Field(description="Joint-space length of the path")
+    planning_time_s: float = Field(description="Search and simplification, s")
+    simplify_time_s: float
+    min_clearance: float | None = Field(description="Least clearance along the path, mm")
+    goal: list[float] | None = Field(description="The goal configuration reached (for a goal "
+                                     "pose: the IK branch chosen)")
+    pairs: list[Pair] = Field(description="Colliding pairs (link, object id or link) when the "
+                              "start or the goal collides")
+    planner: str = Field(description="The planner that ran")
+    resolution: float = Field(description="Joint step of the checks along the path, rad")
+    stats: dict[str, JsonValue] = Field(
+        description="Search statistics: states checked (checks, exact_checks), tree nodes, "
+        "iterations, raw_waypoints, raw_length, ...")
+    trajectory: MotionTrajectoryOut | None
+
+
+class MotionSummary(Result):
+    solved: int = Field(description="Problems with status ok")
+    total: int
+    median_planning_time_s: float | None = Field(description="Over all problems")
+    median_length: float | None = Field(description="Over the solved problems")
+
+
+class _OneOrMany(Result):
+    """Result of one problem (its fields) or of a batch (``problems`` and ``summary``): the
+    JSON carries the fields of the one it is."""
+
+    @model_validator(mode="after")
+    def _complete(self) -> _OneOrMany:
+        batch = getattr(self, "problems", None) is not None
+        if batch != (getattr(self, "summary", None) is not None):
+            raise ValueError("problems and summary come together")
+        if not batch and getattr(self, "status", None) is None:
+            raise ValueError("a result has status (one problem) or problems (a batch)")
+        return self
+
+    @model_serializer(mode="wrap")
+    def _fields_of_its_form(self, handler: Any):  # no return type: the schema stays the model's
+        data = handler(self)
+        if getattr(self, "problems", None) is None:
+            return {k: v for k, v in data.items() if k not in ("problems", "summary")}
+        return {k: v for k, v in data.items() if k not in MotionOut.model_fields}
+
+
+#: The result of a motion job: ``robot``, ``joints`` and, for one problem, the fields of
+#: ``MotionOut``; for a batch, ``problems`` (one ``MotionOut`` each, in order) and
+#: ``summary``.
+MotionJobResult = create_model(  # type: ignore[call-overload]
+    "MotionJobResult",
+    __base__=_OneOrMany,
+    __doc__=(_OneOrMany.__doc__ or "") + " ``robot`` and ``joints`` in both.",
+    robot=(str, Field(description="Robot id")),
+    joints=(list[str], Field(description="The joint names, in the order of every q")),
+    **{name: (info.annotation | None, Field(None, description=info.description))
+       for name, info in MotionOut.model_fields.items()},
+    problems=(list[MotionOut] | None, Field(None, description="A batch: one result per "
+                                            "problem, in order")),
+    summary=(MotionSummary | None, Field(None, description="A batch: over its problems")),
+)
+
+
+# ---- running -----------------------------------------------------------------------------
+_SCENES: dict[str, Any] = {}
+_SCENES_KEPT = 2
+
+
+def collision_scene(data: Mapping[str, Any] | None) -> Any:
+    """The ``CollisionScene`` of an inline scene (keys ``SCENE_KEYS``; stored meshes must be
+    filled in), None for none; ``FieldError`` at ``("scene", ...)``. The last few built are
+    kept, so validating the params and running the job build it once."""
+    if data is None:
+        return None
+    unknown = sorted(set(data) - set(SCENE_KEYS))
+    if unknown:
+        raise FieldError(("scene", unknown[0]), "unknown field; an inline scene has objects "
+                         "and/or moveit")
+    key = json.dumps(data, sort_keys=True, separators=(",", ":"))
+    scene = _SCENES.get(key)
+    if scene is None:
+        from planning.collision import CollisionScene
+
+        try:
+            scene = CollisionScene.from_request(data, None)
+        except FieldError as exc:
+            raise FieldError(("scene", *exc.loc), exc.message) from None
+        while len(_SCENES) >= _SCENES_KEPT:
+            _SCENES.pop(next(iter(_SCENES)))
+        _SCENES[key] = scene
+    return scene
+
+
+#: The kinds of checkers (robot model kind, with a scene, self-collision) this process has
+#: run its checks on.
+_WARMED: set[tuple] = set()
+
+
+def warm_up(req: MotionRequest, collision_model: Any, scene: Any) -> None:
+    """Before the first timed plan of a kind of checker in this process: run each check of a
+    throwaway ``MotionChecker`` once (so no plan's statistics count these), so that loading
+    the compiled kernels (compiling them, on a machine that never ran them: seconds) is not
+    taken out of a problem's time limit."""
+    key = (collision_model.kind, scene is not None and len(scene) > 0, req.self_collision)
+    if key in _WARMED:
+        return
+    import numpy as np
+
+    from planning.motion import warm_up as warm_kernels
+
+    warm_kernels()
+
+    checker = req.checker(collision_model, scene)
+    a = np.clip(req.start, checker.lower, checker.upper)
+    b = a.copy()
+    b[0] = a[0] + 0.05 if a[0] + 0.05 <= checker.upper[0] else a[0] - 0.05
+    checker.free(np.stack([a, b]))
+    checker.segment_free(a, b, req.resolution)
+    checker.pairs(a)
+    checker.clearance(np.stack([a, b]), req.resolution)
+    _WARMED.add(key)
+
+
+def motion_answer(result: Any, joint_names: list[str]) -> dict[str, Any]:
+    """The fields of ``MotionOut`` of a ``MotionResult``."""
+    data = result.to_dict(joint_names=joint_names)
+    return MotionOut(**pick(MotionOut, data)).model_dump(mode="json")
+
+
+def summarize(results: list[dict[str, Any]]) -> dict[str, Any]:
+    """``MotionSummary`` of a batch's results (``MotionOut`` dicts)."""
+    solved = [r for r in results if r["status"] == MotionStatus.OK.value]
+    times = [r["planning_time_s"] for r in results]
+    lengths = [r["length"] for r in solved if r["length"] is not None]
+    return {"solved": len(solved), "total": len(results),
+            "median_planning_time_s": statistics.median(times) if times else None,
+            "median_length": statistics.median(lengths) if lengths else None}
+
+
+def run_motion(params: MotionParams, progress: Progress) -> Any:
+    """Plan each problem in turn with one checker (same robot, scene and settings)."""
+    from planning.collision import RobotCollisionModel
+
+    model = params.robot_model()
+    if isinstance(params.scene, str):
+        raise FieldError(("scene",), "a stored scene's id is filled in when the job is "
+                         "submitted to the service; give the scene inline here")
+    requests = params.requests(model)
+    names = [j.name for j in model.joints]
+    n = len(requests)
+    progress(0.0, "building the collision model")
+    imported = params.imported()
+    cm = imported[1] if imported is not None else RobotCollisionModel.from_model(model)
+    scene = collision_scene(params.scene)
+    warm_up(requests[0], cm, scene)
+    checker = requests[0].checker(cm, scene)
+    results = []
+    for i, req in enumerate(requests):
+        what = f"problem {i + 1} of {n}" if n > 1 else "planning"
+
+        def report(fraction: float, *_: Any, i: int = i, what: str = what) -> None:
+            progress(min(max((i + float(fraction)) / n, 0.0), 1.0) * 0.99, what)
+
+        report(0.0)
+        results.append(motion_answer(req.plan(checker, model, report), names))
+    progress(1.0, "done")
+    head = {"robot": model.id, "joints": names}
+    if params.problems is None:
+        return MotionJobResult(**head, **results[0])
+    return MotionJobResult(**head, problems=results, summary=summarize(results))
+
+
+# ---- submission --------------------------------------------------------------------------
+def _inline_meshes(objects: Any, scenes: Any, loc: list) -> Any:
+    """``objects`` with each stored mesh (``"mesh": id``) replaced by its vertices and faces,
+    so a worker needs no store."""
+    if not isinstance(objects, list) or scenes is None:
+        return objects
+    out = []
+    for i, o in enumerate(objects):
+        if isinstance(o, dict) and o.get("type") == "mesh" and isinstance(o.get("mesh"), str):
+            try:
+                V, F = scenes.mesh(o["mesh"])
+            except KeyError:
+                raise ParamsLimitError([*loc, i, "mesh"], f"no stored mesh named "
+                                       f"'{o['mesh']}'") from None
+            o = {k: v for k, v in o.items() if k != "mesh"} | {
+                "vertices": V.tolist(), "faces": F.tolist()}
+        out.append(o)
+    return out
+
+
+def prepare_motion(params: dict[str, Any], scenes: Any, registry: Any) -> dict[str, Any]:
+    """A submitted motion job's params, ready for a worker: a stored scene (``"scene":
+    "id"``) filled in as ``{"id", "objects"}`` and stored meshes inline; then checked
+    against the robot. ``ParamsLimitError`` naming the field: 404 for an unknown scene, 413
+    when the params outgrow ``MAX_MOTION_PARAMS_BYTES``, 422 for a problem that does not
+    fit the robot or an imported robot. An unknown robot is left to the manager (404)."""
+    scene = params.get("scene")
+    if isinstance(scene, str):
+        try:
+            stored = scenes.describe(scene) if scenes is not None else None
+        except KeyError:
+            stored = None
+        if stored is None:
+            raise ParamsLimitError(["params", "scene"], f"unknown scene '{scene}'", 404)
+        scene = {"id": scene, "objects": stored["objects"]}
+    if isinstance(scene, dict) and "objects" in scene:
+        scene = {**scene, "objects": _inline_meshes(scene["objects"], scenes,
+                                                    ["params", "scene", "objects"])}
+    if scene is not params.get("scene"):
+        params = {**params, "scene": scene}
+        size = len(json.dumps(params, separators=(",", ":"), ensure_ascii=False).encode())
+        if size > MAX_MOTION_PARAMS_BYTES:
+            raise ParamsLimitError(["params", "scene"], f"the params with the scene's "
+                                   f"objects take {size:,} bytes of JSON; a motion job takes "
+                                   f"at most {MAX_MOTION_PARAMS_BYTES:,}", 413)
+    robot = params.get("robot")
+    try:
+        model = registry.get(robot) if isinstance(robot, str) else None
+    except KeyError:
+        return params
+    if model is None:
+        return params
+    try:
+        checked = MotionParams.model_validate(params)
+    except ValidationError:
+        return params  # the manager reports the first error
+    try:
+        checked.requests(model)
+    except FieldError as exc:
+        raise ParamsLimitError(["params", *exc.loc], exc.message) from None
+    return params
+
+
+register(JobKind("motion", MotionParams, MotionJobResult, run_motion,
+                 "Joint-space motion planning in a scene (RRT-Connect / RRT*), one problem "
+                 "or a batch, every path verified", needs_robot=True,
+                 max_params_bytes=MAX_MOTION_PARAMS_BYTES))

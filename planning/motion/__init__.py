@@ -1,0 +1,22 @@
+"""Joint-space motion planning: collision-free moves of any arm, from a configuration to a
+configuration or a tool pose, checked against the robot's own geometry and a scene.
+
+``MotionChecker`` (compiled, batched validity checks), the searches of ``search``
+(RRT-Connect, RRT*, shortcutting) and ``plan_motion``, which validates, searches, simplifies,
+times and reports a ``MotionResult``.
+"""
+
+from .checker import DEFAULT_RESOLUTION, PRISMATIC_SCALE, MotionChecker
+from .planner import (
+    MAX_RESOLUTION,
+    MAX_TIME_LIMIT,
+    PLANNERS,
+    MotionResult,
+    MotionStatus,
+    plan_motion,
+)
+from .warm import start_warm_up, warm_up
+
+__all__ = ["MotionChecker", "MotionResult", "MotionStatus", "plan_motion", "PLANNERS",
+           "DEFAULT_RESOLUTION", "PRISMATIC_SCALE", "MAX_RESOLUTION", "MAX_TIME_LIMIT",
+           "warm_up", "start_warm_up"]

@@ -1,0 +1,677 @@
+"""Compiled collision kernels of the joint-space planner (numba).
+
+Imported only by ``planning.motion.checker``. One call checks one configuration, or every
+state of a straight joint-space segment, from the joint values to the answer: link frames
+along the chain (``kinematics._kernels``' layout: ``T = C[0] M_0(x_0) C[1] ... C[n]``), the
+sphere trees of the links (root, group, leaf balls, as ``planning.collision.checker``) against
+the scene and against each other. A ball that contains a piece of the robot and is farther than
+``margin`` from everything that piece could touch proves the piece free, so a "free" answer is
+certain; a "flagged" answer is a near miss or a collision, settled by the exact stage (FCL) in
+Python.
+
+Arrays (all C-contiguous float64 unless said):
+
+* chain ``C (n + 1, 3, 4)``, ``prismatic (n,)`` bool, ``offset (n,)``;
+* ``body (E,)`` int: frame ``e`` is ``P_body[e] @ X[e]`` with ``X (E, 3, 4)`` constant and
+  ``P_j = C[0] M_0 C[1] ... C[j-1] M_{j-1}`` (``P_0`` the identity);
+* ``capsule`` models (``w == 2``): link ``l`` runs from the origin of frame ``ends[l]`` to that
+  of frame ``ends[l] + 1``; ``imported`` models (``w == 4``): link ``l`` is frame ``l``;
+* trees ``root (L, w)``, ``root_r (L,)``, ``group (L, G, w)``, ``group_r (L, G)``,
+  ``leaf (L, G, m, w)``, ``leaf_r (L, G, m)``;
+* scene: primitives ``kind (n_o,)`` int (0 box, 1 cylinder, 2 sphere, 3 capsule, 4 ball set),
+  ``T_inv (n_o, 3, 4)`` (world to object), ``par (n_o, 4)`` (box half sides; cylinder radius,
+  half height; sphere radius; capsule radius and half length along local z; ball set: index of
+  its ball grid), ``aabb (n_o, 6)``; the scene's distance grid ``grid (nx*ny*nz,)`` with
+  ``grid_meta (7,)`` = lo xyz, h, shape xyz (``h == 0``: no grid, objects are tested one by
+  one), and the scene bounds ``scene_box (6,)``; ball
+  sets ``balls (N, 4)`` sorted by cell, ``cells (n_cells + 1,)`` int starts and per set
+  ``set_meta (S, 9)`` = lo xyz, h, shape xyz, first cell, largest radius;
+* self pairs ``pairs (P, 2)`` int (the sphere-checked ones), and the pair tables
+  (``planning.collision.tables``) of the others: per table ``tab_i (T, 8)`` int = joints
+  (two, -1 for none), shape (two), first value, number of joints, the two links,
+  ``tab_f (T, 6)`` = lo (two), step (two), rho (two), and their ``tab_values`` concatenated.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+_JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
+
+#: Answers of ``check_state``.
+FREE = 0
+FLAGGED = 1
+
+
+# ---- frames ---------------------------------------------------------------------------------
+@njit(**_JIT)
+def _mul_into(A, B, out):
+    """``out = A @ B`` for rigid (3, 4) rows."""
+    for r in range(3):
+        for c in range(4):
+            v = A[r, 0] * B[0, c] + A[r, 1] * B[1, c] + A[r, 2] * B[2, c]
+            if c == 3:
+                v += A[r, 3]
+            out[r, c] = v
+
+
+@njit(**_JIT)
+def frames(C, prismatic, offset, body, X, q, T, F):
+    """Frames ``F (E, 3, 4)`` of configuration ``q``; ``T (3, 4)`` is scratch."""
+    n = q.shape[0]
+    E = body.shape[0]
+    for r in range(3):
+        for c in range(4):
+            T[r, c] = 1.0 if r == c else 0.0
+    for e in range(E):
+        if body[e] == 0:
+            _mul_into(T, X[e], F[e])
+    for i in range(n):
+        # T = T @ C[i] @ M_i(x_i)
+        for r in range(3):
+            x = T[r, 0]
+            y = T[r, 1]
+            z = T[r, 2]
+            p = T[r, 3]
+            for c in range(3):
+                T[r, c] = x * C[i, 0, c] + y * C[i, 1, c] + z * C[i, 2, c]
+            T[r, 3] = x * C[i, 0, 3] + y * C[i, 1, 3] + z * C[i, 2, 3] + p
+        xi = q[i] + offset[i]
+        if prismatic[i]:
+            for r in range(3):
+                T[r, 3] += xi * T[r, 2]
+        else:
+            co = math.cos(xi)
+            si = math.sin(xi)
+            for r in range(3):
+                a = T[r, 0]
+                b = T[r, 1]
+                T[r, 0] = co * a + si * b
+                T[r, 1] = co * b - si * a
+        for e in range(E):
+            if body[e] == i + 1:
+                _mul_into(T, X[e], F[e])
+
+
+@njit(**_JIT)
+def link_state(F, ends, w, M):
+    """Link states ``M (L, 3, w)`` from frames ``F``: the frame's rows (``w == 4``) or the
+    capsule's start and run (``w == 2``)."""
+    L = M.shape[0]
+    for l in range(L):
+        if w == 4:
+            for r in range(3):
+                for c in range(4):
+                    M[l, r, c] = F[l, r, c]
+        else:
+            a = ends[l]
+            for r in range(3):
+                M[l, r, 0] = F[a, r, 3]
+                M[l, r, 1] = F[a + 1, r, 3] - F[a, r, 3]
+
+
+@njit(**_JIT)
+def _place(M, l, local, out):
+    """World point ``out (3,)`` of ``local (w,)`` on link ``l``."""
+    w = local.shape[0]
+    for r in range(3):
+        v = 0.0
+        for c in range(w):
+            v += M[l, r, c] * local[c]
+        out[r] = v
+
+
+# ---- scene distances --------------------------------------------------------------------------
+@njit(**_JIT)
+def _grid_bound(p, grid, meta, box):
+    """A lower bound of the distance from ``p`` to the scene (the grid's, and outside the
+    scene's box at least the distance to the box)."""
+    gx = max(box[0] - p[0], p[0] - box[3], 0.0)
+    gy = max(box[1] - p[1], p[1] - box[4], 0.0)
+    gz = max(box[2] - p[2], p[2] - box[5], 0.0)
+    gap = math.sqrt(gx * gx + gy * gy + gz * gz)
+    h = meta[3]
+    sx = int(meta[4])
+    sy = int(meta[5])
+    sz = int(meta[6])
+    ix = min(max(int(round((p[0] - meta[0]) / h)), 0), sx - 1)
+    iy = min(max(int(round((p[1] - meta[1]) / h)), 0), sy - 1)
+    iz = min(max(int(round((p[2] - meta[2]) / h)), 0), sz - 1)
+    dx = p[0] - (meta[0] + ix * h)
+    dy = p[1] - (meta[1] + iy * h)
+    dz = p[2] - (meta[2] + iz * h)
+    lb = grid[(ix * sy + iy) * sz + iz] - math.sqrt(dx * dx + dy * dy + dz * dz)
+    if gap > 0.0 and gap > lb:
+        return gap
+    return lb
+
+
+@njit(**_JIT)
+def _ballset_within(p, reach, s, balls, cells, set_meta):
+    """Whether a ball of set ``s`` comes within ``reach`` of ``p`` (surface distance)."""
+    lo0 = set_meta[s, 0]
+    lo1 = set_meta[s, 1]
+    lo2 = set_meta[s, 2]
+    h = set_meta[s, 3]
+    sx = int(set_meta[s, 4])
+    sy = int(set_meta[s, 5])
+    sz = int(set_meta[s, 6])
+    first = int(set_meta[s, 7])
+    rmax = set_meta[s, 8]
+    ext = reach + rmax
+    i0 = max(int(math.floor((p[0] - ext - lo0) / h)), 0)
+    i1 = min(int(math.floor((p[0] + ext - lo0) / h)), sx - 1)
+    j0 = max(int(math.floor((p[1] - ext - lo1) / h)), 0)
+    j1 = min(int(math.floor((p[1] + ext - lo1) / h)), sy - 1)
+    k0 = max(int(math.floor((p[2] - ext - lo2) / h)), 0)
+    k1 = min(int(math.floor((p[2] + ext - lo2) / h)), sz - 1)
+    for i in range(i0, i1 + 1):
+        for j in range(j0, j1 + 1):
+            for k in range(k0, k1 + 1):
+                cell = first + (i * sy + j) * sz + k
+                for b in range(cells[cell], cells[cell + 1]):
+                    dx = p[0] - balls[b, 0]
+                    dy = p[1] - balls[b, 1]
+                    dz = p[2] - balls[b, 2]
+                    lim = reach + balls[b, 3]
+                    if dx * dx + dy * dy + dz * dz <= lim * lim:
+                        return True
+    return False
+
+
+@njit(**_JIT)
+def _object_within(p, reach, o, kind, T_inv, par, balls, cells, set_meta):
+    """Whether the point ``p`` is within ``reach`` (>= 0) of object ``o``."""
+    k = kind[o]
+    if k == 4:
+        return _ballset_within(p, reach, int(par[o, 0]), balls, cells, set_meta)
+    x = T_inv[o, 0, 0] * p[0] + T_inv[o, 0, 1] * p[1] + T_inv[o, 0, 2] * p[2] + T_inv[o, 0, 3]
+    y = T_inv[o, 1, 0] * p[0] + T_inv[o, 1, 1] * p[1] + T_inv[o, 1, 2] * p[2] + T_inv[o, 1, 3]
+    z = T_inv[o, 2, 0] * p[0] + T_inv[o, 2, 1] * p[1] + T_inv[o, 2, 2] * p[2] + T_inv[o, 2, 3]
+    if k == 0:
+        qx = max(abs(x) - par[o, 0], 0.0)
+        qy = max(abs(y) - par[o, 1], 0.0)
+        qz = max(abs(z) - par[o, 2], 0.0)
+        return qx * qx + qy * qy + qz * qz <= reach * reach
+    if k == 1:
+        dr = max(math.sqrt(x * x + y * y) - par[o, 0], 0.0)
+        dz = max(abs(z) - par[o, 1], 0.0)
+        return dr * dr + dz * dz <= reach * reach
+    if k == 2:
+        lim = reach + par[o, 0]
+        return x * x + y * y + z * z <= lim * lim
+    # capsule along local z, centred
+    zz = min(max(z, -par[o, 1]), par[o, 1])
+    lim = reach + par[o, 0]
+    return x * x + y * y + (z - zz) * (z - zz) <= lim * lim
+
+
+@njit(**_JIT)
+def _near_scene(p, reach, o, aabb):
+    return (aabb[o, 0] - reach <= p[0] <= aabb[o, 3] + reach
+            and aabb[o, 1] - reach <= p[1] <= aabb[o, 4] + reach
+            and aabb[o, 2] - reach <= p[2] <= aabb[o, 5] + reach)
+
+
+# ---- pair tables ------------------------------------------------------------------------------
+@njit(**_JIT)
+def _table_flagged(q, margin, tab_i, tab_f, tab_values, hits, n_hits, cap):
+    """Flag the pairs whose table lower bound at ``q`` is at most ``margin`` (as
+    ``_scene_link``: the new hit count; stops at the first when ``cap == 0``)."""
+    for t in range(tab_i.shape[0]):
+        k = tab_i[t, 5]
+        first = tab_i[t, 4]
+        best = -np.inf
+        if k == 1:
+            j = tab_i[t, 0]
+            last = tab_i[t, 2] - 1
+            x = q[j]
+            base = min(max(int((x - tab_f[t, 0]) / tab_f[t, 2]), 0), last)
+            for c0 in range(2):
+                i0 = min(base + c0, last)
+                v = tab_values[first + i0] - abs(x - (tab_f[t, 0] + i0 * tab_f[t, 2])) \
+                    * tab_f[t, 4]
+                if v > best:
+                    best = v
+        else:
+            j0 = tab_i[t, 0]
+            j1 = tab_i[t, 1]
+            last0 = tab_i[t, 2] - 1
+            last1 = tab_i[t, 3] - 1
+            x0 = q[j0]
+            x1 = q[j1]
+            b0 = min(max(int((x0 - tab_f[t, 0]) / tab_f[t, 2]), 0), last0)
+            b1 = min(max(int((x1 - tab_f[t, 1]) / tab_f[t, 3]), 0), last1)
+            for c0 in range(2):
+                i0 = min(b0 + c0, last0)
+                g0 = abs(x0 - (tab_f[t, 0] + i0 * tab_f[t, 2])) * tab_f[t, 4]
+                for c1 in range(2):
+                    i1 = min(b1 + c1, last1)
+                    g1 = abs(x1 - (tab_f[t, 1] + i1 * tab_f[t, 3])) * tab_f[t, 5]
+                    v = tab_values[first + i0 * tab_i[t, 3] + i1] - g0 - g1
+                    if v > best:
+                        best = v
+        if best <= margin:
+            if cap == 0:
+                return n_hits + 1
+            if n_hits < cap:
+                hits[n_hits, 0] = tab_i[t, 6]
+                hits[n_hits, 1] = tab_i[t, 7]
+                hits[n_hits, 2] = 1
+                n_hits += 1
+    return n_hits
+
+
+# ---- one configuration ------------------------------------------------------------------------
+@njit(**_JIT)
+def _within_any(p, reach, kind, T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells,
+                set_meta, among, n_among, out):
+    """The objects of ``among[:n_among]`` that may be within ``reach`` of ``p``, into
+    ``out`` (their number). With a distance grid (``grid_meta[3] > 0``) whose bound clears
+    ``p``, none."""
+    if grid_meta[3] > 0.0 and _grid_bound(p, grid, grid_meta, scene_box) > reach:
+        return 0
+    n = 0
+    for i in range(n_among):
+        o = among[i]
+        if _near_scene(p, reach, o, aabb) and _object_within(p, reach, o, kind, T_inv, par,
+                                                             balls, cells, set_meta):
+            out[n] = o
+            n += 1
+    return n
+
+
+@njit(**_JIT)
+def _place_groups(M, l, group, Wg):
+    w = group.shape[2]
+    for g in range(group.shape[1]):
+        for r in range(3):
+            v = 0.0
+            for c in range(w):
+                v += M[l, r, c] * group[l, g, c]
+            Wg[l, g, r] = v
+
+
+@njit(**_JIT)
+def _place_leaves(M, l, leaf, Wl):
+    w = leaf.shape[3]
+    for g in range(leaf.shape[1]):
+        for j in range(leaf.shape[2]):
+            for r in range(3):
+                v = 0.0
+                for c in range(w):
+                    v += M[l, r, c] * leaf[l, g, j, c]
+                Wl[l, g, j, r] = v
+
+
+@njit(**_JIT)
+def _ready(M, l, level, group, leaf, Wg, Wl, done):
+    """Place link ``l``'s group (``level`` 1) or leaf (2) centres if not yet placed."""
+    if done[l] < 1:
+        _place_groups(M, l, group, Wg)
+        done[l] = 1
+    if level >= 2 and done[l] < 2:
+        _place_leaves(M, l, leaf, Wl)
+        done[l] = 2
+
+
+@njit(**_JIT)
+def _add_hit(hits, n_hits, cap, a, c, is_self):
+    for h in range(n_hits):
+        if hits[h, 0] == a and hits[h, 1] == c and hits[h, 2] == is_self:
+            return n_hits
+    if n_hits < cap:
+        hits[n_hits, 0] = a
+        hits[n_hits, 1] = c
+        hits[n_hits, 2] = is_self
+        return n_hits + 1
+    return n_hits
+
+
+@njit(**_JIT)
+def _sq3(P, Q):
+    dx = P[0] - Q[0]
+    dy = P[1] - Q[1]
+    dz = P[2] - Q[2]
+    return dx * dx + dy * dy + dz * dz
+
+
+@njit(**_JIT)
+def _close(P, Q, lim):
+    dx = P[0] - Q[0]
+    dy = P[1] - Q[1]
+    dz = P[2] - Q[2]
+    return dx * dx + dy * dy + dz * dz <= lim * lim
+
+
+@njit(**_JIT)
+def check_state(M, margin, root, root_r, group, group_r, leaf, leaf_r, has_scene, kind,
+                T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells, set_meta, pairs,
+                q, tab_i, tab_f, tab_values, hits, cap, Wr, Wg, Wl, done, all_o, near_r,
+                near_g):
+    """Sphere and table check of one state ``M (L, 3, w)`` of configuration ``q``: the
+    number of flagged pairs written to ``hits (cap, 3)`` as ``(link, object, 0)`` or
+    ``(link, link, 1)``; with ``cap == 0`` it stops at the first and answers 0 (free) or 1
+    (flagged). Ball centres are placed once per state, a link's groups and leaves only when
+    a coarser ball of it is near something; a leaf is tested only against the objects its
+    group ball is near. ``Wr (L, 3)``, ``Wg``, ``Wl``, ``done (L,)``, ``all_o``, ``near_r``,
+    ``near_g`` ``(n_o,)`` are scratch."""
+    n_hits = _table_flagged(q, margin, tab_i, tab_f, tab_values, hits, 0, cap)
+    if cap == 0 and n_hits:
+        return 1
+    L = M.shape[0]
+    G = group.shape[1]
+    m = leaf.shape[2]
+    for l in range(L):
+        done[l] = 0
+        for r in range(3):
+            v = 0.0
+            for c in range(root.shape[1]):
+                v += M[l, r, c] * root[l, c]
+            Wr[l, r] = v
+    if has_scene:
+        n_o = kind.shape[0]
+        for l in range(L):
+            nr = _within_any(Wr[l], root_r[l] + margin, kind, T_inv, par, aabb, grid,
+                             grid_meta, scene_box, balls, cells, set_meta, all_o, n_o, near_r)
+            if nr == 0:
+                continue
+            _ready(M, l, 1, group, leaf, Wg, Wl, done)
+            for g in range(G):
+                ng = _within_any(Wg[l, g], group_r[l, g] + margin, kind, T_inv, par, aabb,
+                                 grid, grid_meta, scene_box, balls, cells, set_meta, near_r,
+                                 nr, near_g)
+                if ng == 0:
+                    continue
+                _ready(M, l, 2, group, leaf, Wg, Wl, done)
+                for j in range(m):
+                    reach = leaf_r[l, g, j] + margin
+                    for i in range(ng):
+                        o = near_g[i]
+                        if _object_within(Wl[l, g, j], reach, o, kind, T_inv, par, balls,
+                                          cells, set_meta):
+                            if cap == 0:
+                                return 1
+                            n_hits = _add_hit(hits, n_hits, cap, l, o, 0)
+    for k in range(pairs.shape[0]):
+        a = pairs[k, 0]
+        c = pairs[k, 1]
+        if not _close(Wr[a], Wr[c], root_r[a] + root_r[c] + margin):
+            continue
+        _ready(M, a, 1, group, leaf, Wg, Wl, done)
+        _ready(M, c, 1, group, leaf, Wg, Wl, done)
+        found = False
+        for ga in range(G):
+            for gc in range(G):
+                if not _close(Wg[a, ga], Wg[c, gc], group_r[a, ga] + group_r[c, gc] + margin):
+                    continue
+                _ready(M, a, 2, group, leaf, Wg, Wl, done)
+                _ready(M, c, 2, group, leaf, Wg, Wl, done)
+                for ja in range(m):
+                    ra = leaf_r[a, ga, ja] + margin
+                    for jc in range(m):
+                        if _close(Wl[a, ga, ja], Wl[c, gc, jc], ra + leaf_r[c, gc, jc]):
+                            found = True
+                            break
+                    if found:
+                        break
+                if found:
+                    break
+            if found:
+                break
+        if found:
+            if cap == 0:
+                return 1
+            n_hits = _add_hit(hits, n_hits, cap, a, c, 1)
+    return n_hits
+
+
+@njit(**_JIT)
+def _scratch(L, G, m, n_o):
+    all_o = np.arange(max(n_o, 1))
+    return (np.empty((L, 3)), np.empty((L, G, 3)), np.empty((L, G, m, 3)),
+            np.zeros(L, dtype=np.int8), all_o, np.empty(max(n_o, 1), dtype=np.int64),
+            np.empty(max(n_o, 1), dtype=np.int64))
+
+
+@njit(**_JIT)
+def check_states(C, prismatic, offset, body, X, ends, w, Q, margin, root, root_r, group,
+                 group_r, leaf, leaf_r, has_scene, kind, T_inv, par, aabb, grid, grid_meta,
+                 scene_box, balls, cells, set_meta, pairs, tab_i, tab_f, tab_values, out):
+    """Sphere answers ``out (B,)`` (0 free, 1 flagged) of configurations ``Q (B, n)``."""
+    E = body.shape[0]
+    L = root.shape[0]
+    T = np.empty((3, 4))
+    F = np.empty((E, 3, 4))
+    M = np.empty((L, 3, w))
+    hits = np.empty((1, 3), dtype=np.int64)
+    Wr, Wg, Wl, done, all_o, near_r, near_g = _scratch(L, group.shape[1], leaf.shape[2],
+                                                       kind.shape[0])
+    for b in range(Q.shape[0]):
+        frames(C, prismatic, offset, body, X, Q[b], T, F)
+        link_state(F, ends, w, M)
+        out[b] = check_state(M, margin, root, root_r, group, group_r, leaf, leaf_r,
+                             has_scene, kind, T_inv, par, aabb, grid, grid_meta, scene_box,
+                             balls, cells, set_meta, pairs, Q[b], tab_i, tab_f, tab_values,
+                             hits, 0, Wr, Wg, Wl, done, all_o, near_r, near_g)
+
+
+@njit(**_JIT)
+def state_hits(C, prismatic, offset, body, X, ends, w, q, margin, root, root_r, group,
+               group_r, leaf, leaf_r, has_scene, kind, T_inv, par, aabb, grid, grid_meta,
+               scene_box, balls, cells, set_meta, pairs, tab_i, tab_f, tab_values, hits, M):
+    """Every flagged pair of configuration ``q`` into ``hits (cap, 3)`` (their number), and
+    its link state into ``M``."""
+    E = body.shape[0]
+    L = root.shape[0]
+    T = np.empty((3, 4))
+    F = np.empty((E, 3, 4))
+    Wr, Wg, Wl, done, all_o, near_r, near_g = _scratch(L, group.shape[1], leaf.shape[2],
+                                                       kind.shape[0])
+    frames(C, prismatic, offset, body, X, q, T, F)
+    link_state(F, ends, w, M)
+    return check_state(M, margin, root, root_r, group, group_r, leaf, leaf_r, has_scene, kind,
+                       T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells, set_meta,
+                       pairs, q, tab_i, tab_f, tab_values, hits, hits.shape[0], Wr, Wg, Wl,
+                       done, all_o, near_r, near_g)
+
+
+@njit(**_JIT)
+def segment_first(C, prismatic, offset, body, X, ends, w, a, b, n, order, start, margin,
+                  root, root_r, group, group_r, leaf, leaf_r, has_scene, kind, T_inv, par,
+                  aabb, grid, grid_meta, scene_box, balls, cells, set_meta, pairs, tab_i, tab_f,
+                  tab_values, q):
+    """Check the states ``a + (b - a) k / n`` for ``k = order[start:]`` in that order; answer
+    the position in ``order`` of the first the spheres flag (its configuration left in ``q``),
+    or ``len(order)`` when all are free."""
+    E = body.shape[0]
+    L = root.shape[0]
+    dof = a.shape[0]
+    T = np.empty((3, 4))
+    F = np.empty((E, 3, 4))
+    M = np.empty((L, 3, w))
+    hits = np.empty((1, 3), dtype=np.int64)
+    Wr, Wg, Wl, done, all_o, near_r, near_g = _scratch(L, group.shape[1], leaf.shape[2],
+                                                       kind.shape[0])
+    for i in range(start, order.shape[0]):
+        s = order[i] / n
+        for j in range(dof):
+            q[j] = a[j] + (b[j] - a[j]) * s
+        frames(C, prismatic, offset, body, X, q, T, F)
+        link_state(F, ends, w, M)
+        if check_state(M, margin, root, root_r, group, group_r, leaf, leaf_r, has_scene, kind,
+                       T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells, set_meta,
+                       pairs, q, tab_i, tab_f, tab_values, hits, 0, Wr, Wg, Wl, done, all_o,
+                       near_r, near_g):
+            return i
+    return order.shape[0]
+
+
+# ---- clearance ------------------------------------------------------------------------------
+@njit(**_JIT)
+def _ballset_distance(p, reach, s, balls, cells, set_meta):
+    """Signed distance from ``p`` to the balls of set ``s``, or ``reach`` when none comes
+    within it (a lower bound then)."""
+    lo0 = set_meta[s, 0]
+    lo1 = set_meta[s, 1]
+    lo2 = set_meta[s, 2]
+    h = set_meta[s, 3]
+    sx = int(set_meta[s, 4])
+    sy = int(set_meta[s, 5])
+    sz = int(set_meta[s, 6])
+    first = int(set_meta[s, 7])
+    ext = reach + set_meta[s, 8]
+    best = reach
+    i0 = max(int(math.floor((p[0] - ext - lo0) / h)), 0)
+    i1 = min(int(math.floor((p[0] + ext - lo0) / h)), sx - 1)
+    j0 = max(int(math.floor((p[1] - ext - lo1) / h)), 0)
+    j1 = min(int(math.floor((p[1] + ext - lo1) / h)), sy - 1)
+    k0 = max(int(math.floor((p[2] - ext - lo2) / h)), 0)
+    k1 = min(int(math.floor((p[2] + ext - lo2) / h)), sz - 1)
+    for i in range(i0, i1 + 1):
+        for j in range(j0, j1 + 1):
+            for k in range(k0, k1 + 1):
+                cell = first + (i * sy + j) * sz + k
+                for b in range(cells[cell], cells[cell + 1]):
+                    dx = p[0] - balls[b, 0]
+                    dy = p[1] - balls[b, 1]
+                    dz = p[2] - balls[b, 2]
+                    d = math.sqrt(dx * dx + dy * dy + dz * dz) - balls[b, 3]
+                    if d < best:
+                        best = d
+    return best
+
+
+@njit(**_JIT)
+def _object_distance(p, reach, o, kind, T_inv, par, balls, cells, set_meta):
+    """Signed distance from ``p`` to object ``o`` (ball sets: at most ``reach``)."""
+    k = kind[o]
+    if k == 4:
+        return _ballset_distance(p, reach, int(par[o, 0]), balls, cells, set_meta)
+    x = T_inv[o, 0, 0] * p[0] + T_inv[o, 0, 1] * p[1] + T_inv[o, 0, 2] * p[2] + T_inv[o, 0, 3]
+    y = T_inv[o, 1, 0] * p[0] + T_inv[o, 1, 1] * p[1] + T_inv[o, 1, 2] * p[2] + T_inv[o, 1, 3]
+    z = T_inv[o, 2, 0] * p[0] + T_inv[o, 2, 1] * p[1] + T_inv[o, 2, 2] * p[2] + T_inv[o, 2, 3]
+    if k == 0:
+        qx = abs(x) - par[o, 0]
+        qy = abs(y) - par[o, 1]
+        qz = abs(z) - par[o, 2]
+        ox = max(qx, 0.0)
+        oy = max(qy, 0.0)
+        oz = max(qz, 0.0)
+        return math.sqrt(ox * ox + oy * oy + oz * oz) + min(max(qx, max(qy, qz)), 0.0)
+    if k == 1:
+        dr = math.sqrt(x * x + y * y) - par[o, 0]
+        dz = abs(z) - par[o, 1]
+        a = max(dr, 0.0)
+        b = max(dz, 0.0)
+        return math.sqrt(a * a + b * b) + min(max(dr, dz), 0.0)
+    if k == 2:
+        return math.sqrt(x * x + y * y + z * z) - par[o, 0]
+    zz = min(max(z, -par[o, 1]), par[o, 1])
+    return math.sqrt(x * x + y * y + (z - zz) * (z - zz)) - par[o, 0]
+
+
+@njit(**_JIT)
+def state_bounds(C, prismatic, offset, body, X, ends, w, q, reach, root, root_r, group,
+                 group_r, leaf, leaf_r, has_scene, kind, T_inv, par, aabb, grid, grid_meta,
+                 scene_box, balls, cells, set_meta, pairs, tab_i, tab_f, tab_values,
+                 out_scene, out_self, out_tab, M):
+    """Sphere lower bounds of every pair's distance at configuration ``q`` (capped at
+    ``reach`` mm): link-object ``out_scene (L, n_o)``, sphere-checked self pairs
+    ``out_self (P,)``, tabled pairs ``out_tab (T,)``; the link state into ``M``."""
+    E = body.shape[0]
+    T = np.empty((3, 4))
+    F = np.empty((E, 3, 4))
+    frames(C, prismatic, offset, body, X, q, T, F)
+    link_state(F, ends, w, M)
+    L = M.shape[0]
+    G = group.shape[1]
+    m = leaf.shape[2]
+    n_o = kind.shape[0]
+    Wr = np.empty((L, 3))
+    Wg = np.empty((L, G, 3))
+    Wl = np.empty((L, G, m, 3))
+    for l in range(L):
+        _place(M, l, root[l], Wr[l])
+        _place_groups(M, l, group, Wg)
+        _place_leaves(M, l, leaf, Wl)
+    # Balls contain their children: a coarser ball's distance bounds its leaves', so whole
+    # links and groups are skipped once they cannot beat the pair's best so far.
+    for l in range(L):
+        for o in range(n_o):
+            best = reach
+            if has_scene and _object_distance(Wr[l], reach + root_r[l], o, kind, T_inv, par,
+                                              balls, cells, set_meta) - root_r[l] < best:
+                for g in range(G):
+                    rg = group_r[l, g]
+                    if _object_distance(Wg[l, g], best + rg, o, kind, T_inv, par, balls, cells,
+                                        set_meta) - rg >= best:
+                        continue
+                    for j in range(m):
+                        r = leaf_r[l, g, j]
+                        d = _object_distance(Wl[l, g, j], best + r, o, kind, T_inv, par,
+                                             balls, cells, set_meta) - r
+                        if d < best:
+                            best = d
+            out_scene[l, o] = best
+    for k in range(pairs.shape[0]):
+        a = pairs[k, 0]
+        c = pairs[k, 1]
+        best = reach
+        if math.sqrt(_sq3(Wr[a], Wr[c])) - root_r[a] - root_r[c] < best:
+            for ga in range(G):
+                for gc in range(G):
+                    if math.sqrt(_sq3(Wg[a, ga], Wg[c, gc])) - group_r[a, ga] \
+                            - group_r[c, gc] >= best:
+                        continue
+                    for ja in range(m):
+                        for jc in range(m):
+                            d = math.sqrt(_sq3(Wl[a, ga, ja], Wl[c, gc, jc])) \
+                                - leaf_r[a, ga, ja] - leaf_r[c, gc, jc]
+                            if d < best:
+                                best = d
+        out_self[k] = best
+    for t in range(tab_i.shape[0]):
+        one = tab_i[t:t + 1]
+        hits = np.empty((1, 3), dtype=np.int64)
+        # The table's value: bisect the margin at which it flags (1e-3 mm).
+        lo = -1e4
+        hi = reach
+        if _table_flagged(q, lo, one, tab_f[t:t + 1], tab_values, hits, 0, 0) > 0:
+            out_tab[t] = lo
+            continue
+        if _table_flagged(q, hi, one, tab_f[t:t + 1], tab_values, hits, 0, 0) == 0:
+            out_tab[t] = hi
+            continue
+        while hi - lo > 1e-3:
+            mid = 0.5 * (lo + hi)
+            if _table_flagged(q, mid, one, tab_f[t:t + 1], tab_values, hits, 0, 0) > 0:
+                hi = mid
+            else:
+                lo = mid
+        out_tab[t] = lo
+
+
+# ---- search helpers ---------------------------------------------------------------------------
+@njit(**_JIT)
+def nearest(X, n, alive, x, w):
+    """Index of the live row of ``X[:n]`` nearest to ``x`` in the ``w``-weighted metric."""
+    best = np.inf
+    arg = -1
+    d = X.shape[1]
+    for i in range(n):
+        if not alive[i]:
+            continue
+        s = 0.0
+        for j in range(d):
+            t = (X[i, j] - x[j]) * w[j]
+            s += t * t
+            if s >= best:
+                break
+        if s < best:
+            best = s
+            arg = i
+    return arg

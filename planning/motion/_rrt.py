@@ -1,0 +1,341 @@
+"""Compiled RRT-Connect and shortcutting (numba).
+
+The searches of ``planning.motion.search`` with every step compiled: sampling (a seeded
+xorshift generator of its own, so a run depends on its seed alone, whatever else runs in the
+process), nearest neighbours, edge checks (``planning.motion._kernels.check_state`` at each
+state, in bisection order) and path simplification. A state the sphere stage flags counts as a
+collision with ``mode[0] == 0`` (the spheres contain the robot, so every edge kept is free);
+with ``mode[0] == 1`` the exact stage (FCL, in Python through ``objmode``: the checker of
+the calling thread) settles it, and ``mode[1]`` counts those calls.
+
+``R`` is the robot's argument tuple and ``S`` the scene's (``MotionChecker``'s ``_robot`` and
+``_scene``), unpacked by ``_free_state``.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+
+import numpy as np
+from numba import njit, objmode
+
+from ._kernels import _JIT, _scratch, check_state, frames, link_state, nearest
+
+#: What ``rrt_connect_run`` answers.
+RUN_FOUND = 1
+RUN_BUDGET = 0
+RUN_FULL = 2
+
+
+# ---- random numbers -----------------------------------------------------------------------------
+@njit(**_JIT)
+def uniform(state):
+    """A uniform number in [0, 1) from the xorshift64* generator ``state (1,) uint64``."""
+    x = state[0]
+    x ^= x >> np.uint64(12)
+    x ^= x << np.uint64(25)
+    x ^= x >> np.uint64(27)
+    state[0] = x
+    y = x * np.uint64(2685821657736338717)
+    return float(y >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+# ---- one state, one segment -------------------------------------------------------------------
+_local = threading.local()
+
+
+def exact_free(q: np.ndarray) -> bool:
+    """The exact stage of a flagged state, for the compiled code (``objmode``): the
+    ``MotionChecker`` of this thread's search (``_local.checker``)."""
+    return bool(_local.checker._exact_free(np.array(q)))
+
+
+@njit(**_JIT)
+def _free_state(R, S, q, margin, T, F, M, hits, Wr, Wg, Wl, done, all_o, near_r, near_g,
+                mode):
+    """Whether configuration ``q`` is free: the spheres clear it, or (``mode[0] == 1``)
+    the exact stage does."""
+    C, prismatic, offset, body, X, ends, w = R[0], R[1], R[2], R[3], R[4], R[5], R[6]
+    frames(C, prismatic, offset, body, X, q, T, F)
+    link_state(F, ends, w, M)
+    if check_state(M, margin, R[7], R[8], R[9], R[10], R[11], R[12], S[0], S[1], S[2],
+                   S[3], S[4], S[5], S[6], S[7], S[8], S[9], S[10], R[13], q, R[14],
+                   R[15], R[16], hits, 0, Wr, Wg, Wl, done, all_o, near_r, near_g) == 0:
+        return True
+    if mode[0] == 0:
+        return False
+    mode[1] += 1
+    with objmode(ok="boolean"):
+        ok = exact_free(q)
+    return ok
+
+
+@njit(**_JIT)
+def _steps(a, b, wt, res):
+    d = 0.0
+    for j in range(a.shape[0]):
+        v = abs(b[j] - a[j]) * wt[j]
+        if v > d:
+            d = v
+    return max(1, int(math.ceil(d / res - 1e-12)))
+
+
+@njit(**_JIT)
+def _segment_free(R, S, a, b, wt, res, margin, q, work):
+    """Whether the states strictly between ``a`` and ``b`` (joint steps at most ``res``)
+    are free, taken in bisection order; ``work`` is the scratch tuple; counts in
+    ``work[-1][0]``."""
+    T, F, M, hits, Wr, Wg, Wl, done, all_o, near_r, near_g, count, mode = work
+    n = _steps(a, b, wt, res)
+    s = 1
+    while s * 2 < n:
+        s *= 2
+    while s >= 1:
+        for k in range(s, n, 2 * s):
+            t = k / n
+            for j in range(a.shape[0]):
+                q[j] = a[j] + (b[j] - a[j]) * t
+            count[0] += 1
+            if not _free_state(R, S, q, margin, T, F, M, hits, Wr, Wg, Wl, done, all_o,
+                               near_r, near_g, mode):
+                return False
+        s //= 2
+    return True
+
+
+@njit(**_JIT)
+def make_work(R, S):
+    """Scratch arrays for ``_segment_free``."""
+    E = R[3].shape[0]
+    L = R[7].shape[0]
+    Wr, Wg, Wl, done, all_o, near_r, near_g = _scratch(L, R[9].shape[1], R[11].shape[2],
+                                                       S[1].shape[0])
+    return (np.empty((3, 4)), np.empty((E, 3, 4)), np.empty((L, 3, R[6])),
+            np.empty((1, 3), dtype=np.int64), Wr, Wg, Wl, done, all_o, near_r, near_g,
+            np.zeros(1, dtype=np.int64), np.zeros(2, dtype=np.int64))
+
+
+# ---- trees ------------------------------------------------------------------------------------
+@njit(**_JIT)
+def _steer(a, b, wt, step, out):
+    d = 0.0
+    for j in range(a.shape[0]):
+        v = (b[j] - a[j]) * wt[j]
+        d += v * v
+    d = math.sqrt(d)
+    if d <= step:
+        for j in range(a.shape[0]):
+            out[j] = b[j]
+        return True
+    f = step / d
+    for j in range(a.shape[0]):
+        out[j] = a[j] + (b[j] - a[j]) * f
+    return False
+
+
+@njit(**_JIT)
+def _add(X, P, A, K, N, t, x, parent, checked):
+    n = N[t]
+    X[t, n] = x
+    P[t, n] = parent
+    A[t, n] = True
+    K[t, n] = checked
+    N[t] = n + 1
+    return n
+
+
+@njit(**_JIT)
+def _kill(P, A, N, t, i):
+    A[t, i] = False
+    for k in range(i + 1, N[t]):
+        p = P[t, k]
+        if p >= 0 and not A[t, p]:
+            A[t, k] = False
+
+
+@njit(**_JIT)
+def _validate(R, S, X, P, A, K, t, leaf, wt, fine, margin, q, work):
+    """Check the unchecked edges from ``leaf`` up to its root at ``fine``; False (and the
+    nodes below the failing edge dropped) if one fails."""
+    i = leaf
+    while i >= 0:
+        p = P[t, i]
+        if p >= 0 and not K[t, i]:
+            if not _segment_free(R, S, X[t, p], X[t, i], wt, fine, margin, q, work):
+                return False, i
+            K[t, i] = True
+        i = p
+    return True, -1
+
+
+@njit(**_JIT)
+def _branch_length(P, t, i):
+    n = 0
+    while i >= 0:
+        n += 1
+        i = P[t, i]
+    return n
+
+
+@njit(**_JIT)
+def rrt_connect_run(R, S, X, P, A, K, N, side, lo, hi, wt, step, coarse, fine, margin,
+                    iterations, rng, work, out):
+    """Up to ``iterations`` of RRT-Connect on trees ``0`` (from the start) and ``1`` (from
+    the goals) held in ``X (2, cap, dof)``, parents ``P``, live flags ``A``, fine-checked
+    flags ``K`` and sizes ``N (2,)``; ``side[0]`` is the tree extended next. Edges enter at
+    the ``coarse`` step and the path's edges are checked at ``fine`` when the trees meet.
+    Answers ``(RUN_FOUND, K)`` with the path's ``K`` waypoints in ``out``, ``(RUN_BUDGET,
+    0)`` or ``(RUN_FULL, 0)`` when a tree is full."""
+    dof = lo.shape[0]
+    cap = X.shape[1]
+    x = np.empty(dof)
+    new = np.empty(dof)
+    nxt = np.empty(dof)
+    q = np.empty(dof)
+    for _ in range(iterations):
+        if N[0] >= cap - 64 or N[1] >= cap - 64:
+            return RUN_FULL, 0
+        a = side[0]
+        b = 1 - a
+        side[0] = b
+        for j in range(dof):
+            x[j] = lo[j] + (hi[j] - lo[j]) * uniform(rng)
+        i = nearest(X[a], N[a], A[a], x, wt)
+        _steer(X[a, i], x, wt, step, new)
+        if not _segment_free(R, S, X[a, i], new, wt, coarse, margin, q, work):
+            continue
+        k = _add(X, P, A, K, N, a, new, i, coarse <= fine)
+        j = nearest(X[b], N[b], A[b], new, wt)
+        met = False
+        while N[b] < cap - 1:
+            reached = _steer(X[b, j], new, wt, step, nxt)
+            if not _segment_free(R, S, X[b, j], nxt, wt, coarse, margin, q, work):
+                break
+            j = _add(X, P, A, K, N, b, nxt, j, coarse <= fine)
+            if reached:
+                met = True
+                break
+        if not met:
+            continue
+        ok, bad = _validate(R, S, X, P, A, K, a, k, wt, fine, margin, q, work)
+        if not ok:
+            _kill(P, A, N, a, bad)
+            continue
+        ok, bad = _validate(R, S, X, P, A, K, b, j, wt, fine, margin, q, work)
+        if not ok:
+            _kill(P, A, N, b, bad)
+            continue
+        # Start tree's branch reversed, then the goal tree's from after the meeting node.
+        s_leaf = k if a == 0 else j
+        g_leaf = j if a == 0 else k
+        ns = _branch_length(P, 0, s_leaf)
+        i = s_leaf
+        for m in range(ns - 1, -1, -1):
+            out[m] = X[0, i]
+            i = P[0, i]
+        i = P[1, g_leaf]
+        m = ns
+        while i >= 0:
+            out[m] = X[1, i]
+            m += 1
+            i = P[1, i]
+        return RUN_FOUND, m
+    return RUN_BUDGET, 0
+
+
+# ---- simplification ---------------------------------------------------------------------------
+@njit(**_JIT)
+def _dist(a, b, wt):
+    d = 0.0
+    for j in range(a.shape[0]):
+        v = (b[j] - a[j]) * wt[j]
+        d += v * v
+    return math.sqrt(d)
+
+
+@njit(**_JIT)
+def reduce_path(R, S, path, n, wt, fine, margin, work):
+    """Drop waypoints of ``path[:n]`` in place: from each kept one, jump to the farthest
+    later one in sight. Answers the new count."""
+    q = np.empty(path.shape[1])
+    keep = np.empty(n, dtype=np.int64)
+    keep[0] = 0
+    m = 1
+    i = 0
+    while i < n - 1:
+        j = n - 1
+        while j > i + 1 and not _segment_free(R, S, path[i], path[j], wt, fine, margin, q,
+                                              work):
+            j -= 1
+        keep[m] = j
+        m += 1
+        i = j
+    for k in range(m):
+        path[k] = path[keep[k]]
+    return m
+
+
+@njit(**_JIT)
+def shortcut_run(R, S, path, n, wt, fine, margin, attempts, patience, rng, work):
+    """Random shortcuts between points anywhere along ``path[:n]`` (capacity at least
+    ``n + 2 * attempts``), in place; answers the new count."""
+    dof = path.shape[1]
+    q = np.empty(dof)
+    a = np.empty(dof)
+    b = np.empty(dof)
+    cum = np.empty(path.shape[0])
+    fails = 0
+    for _ in range(attempts):
+        if n <= 2 or fails >= patience:
+            break
+        cum[0] = 0.0
+        for i in range(n - 1):
+            cum[i + 1] = cum[i] + _dist(path[i], path[i + 1], wt)
+        total = cum[n - 1]
+        s0 = uniform(rng) * total
+        s1 = uniform(rng) * total
+        if s1 < s0:
+            s0, s1 = s1, s0
+        i = 0
+        while i < n - 2 and cum[i + 1] <= s0:
+            i += 1
+        j = i
+        while j < n - 2 and cum[j + 1] <= s1:
+            j += 1
+        if j <= i:
+            fails += 1
+            continue
+        for d in range(dof):
+            seg = cum[i + 1] - cum[i]
+            t = 0.0 if seg <= 0 else (s0 - cum[i]) / seg
+            a[d] = path[i, d] + (path[i + 1, d] - path[i, d]) * t
+            seg = cum[j + 1] - cum[j]
+            t = 0.0 if seg <= 0 else (s1 - cum[j]) / seg
+            b[d] = path[j, d] + (path[j + 1, d] - path[j, d]) * t
+        old = (cum[i + 1] - s0) + (s1 - cum[j]) + (cum[j] - cum[i + 1])
+        if _dist(a, b, wt) >= old - 1e-9 or not _segment_free(R, S, a, b, wt, fine, margin,
+                                                               q, work):
+            fails += 1
+            continue
+        # path[:i+1], a, b, path[j+1:n]
+        tail = n - (j + 1)
+        buf = path[j + 1:n].copy()
+        path[i + 1] = a
+        path[i + 2] = b
+        path[i + 3:i + 3 + tail] = buf
+        n = i + 3 + tail
+        # Drop points equal to their predecessor.
+        m = 1
+        for k in range(1, n):
+            same = True
+            for d in range(dof):
+                if abs(path[k, d] - path[m - 1, d]) > 1e-12:
+                    same = False
+                    break
+            if not same:
+                path[m] = path[k]
+                m += 1
+        n = m
+        fails = 0
+    return n

@@ -1,0 +1,564 @@
+"""Validity checks of a robot's configurations in a scene, for the joint-space planners.
+
+``MotionChecker`` joins a robot's collision model (``planning.collision.RobotCollisionModel``)
+and a scene (``CollisionScene``) into flat arrays for the compiled kernels
+(``planning.motion._kernels``), which go from joint values to an answer in one call: one
+configuration, a batch, or every state of a straight segment at a given joint step, the
+segment's states taken in bisection order (the middle first) and stopping at the first the
+sphere stage flags. A flagged state goes to the exact stage (FCL on the real shapes, only the
+flagged pairs) and the segment check resumes after it if it is free. A "free" answer is
+therefore certain, and a "collides" answer is the exact one.
+
+Joint steps: a segment is checked at states no farther apart than ``resolution`` rad on every
+revolute joint and ``resolution * PRISMATIC_SCALE`` mm on every prismatic one (1 mm at the
+default 0.01). The same scale turns prismatic millimetres into the planners' metric.
+
+Without numba (``KINOPLAN_JIT=0``), or for a robot whose links the chain layout cannot carry
+(a link moved by a mimic joint), the checks run on ``planning.collision.collides`` instead:
+the same answers, slower.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from kinematics.errors import FieldError
+
+__all__ = ["MotionChecker", "PRISMATIC_SCALE", "DEFAULT_RESOLUTION", "bisection_order"]
+
+#: Millimetres of a prismatic joint that count as one radian (metric and joint steps).
+PRISMATIC_SCALE = 100.0
+#: Default largest joint step between checked states of a segment (rad).
+DEFAULT_RESOLUTION = 0.01
+#: Most flagged pairs collected for the exact stage of one configuration.
+_HIT_CAP = 256
+#: Scenes with more objects than this are screened by their distance grid.
+GRID_OBJECTS = 24
+#: Largest number of cells of one ball set's grid.
+_SET_CELLS = 1 << 18
+
+
+def bisection_order(n: int) -> np.ndarray:
+    """The interior states ``1 .. n - 1`` of a segment cut into ``n`` steps, in the order
+    of a breadth-first bisection (middle, then quarters, ...)."""
+    if n <= 1:
+        return np.empty(0, dtype=np.int64)
+    out = []
+    seen = np.zeros(n + 1, dtype=bool)
+    seen[0] = seen[n] = True
+    intervals = [(0, n)]
+    while intervals:
+        nxt = []
+        for a, b in intervals:
+            if b - a < 2:
+                continue
+            m = (a + b) // 2
+            if not seen[m]:
+                seen[m] = True
+                out.append(m)
+            nxt.append((a, m))
+            nxt.append((m, b))
+        intervals = nxt
+    return np.array(out, dtype=np.int64)
+
+
+class MotionChecker:
+    """Batched validity checks of one robot's configurations in one scene (module
+    docstring). ``lower``/``upper``: joint limits (default: the robot model's); ``margin``
+    (mm): closer than that counts as a collision; ``exact``: confirm the spheres' hits on
+    the real shapes (False: a flagged state counts as colliding, faster and more cautious).
+    ``checks``/``exact_checks`` count the states checked."""
+
+    def __init__(self, collision_model: Any, scene: Any = None, *, lower=None, upper=None,
+                 self_collision: bool = True, margin: float = 0.0, exact: bool = True) -> None:
+        from planning.collision import CollisionScene, RobotCollisionModel
+
+        if not isinstance(collision_model, RobotCollisionModel):
+            raise TypeError("collision_model must be a RobotCollisionModel")
+        if scene is not None and not isinstance(scene, CollisionScene):
+            raise TypeError("scene must be a CollisionScene or None")
+        if isinstance(margin, bool) or not isinstance(margin, int | float) \
+                or not math.isfinite(margin) or margin < 0:
+            raise FieldError(("margin",), "margin must be a finite number >= 0 (mm)")
+        self.cm = collision_model
+        self.scene = scene if scene is not None and len(scene) else None
+        self.robot_model = (collision_model.source.model if collision_model.kind == "imported"
+                            else collision_model.source)
+        rm = self.robot_model
+        self.dof = int(collision_model.dof)
+        self.lower = np.array(rm.lower if lower is None else lower, dtype=float)
+        self.upper = np.array(rm.upper if upper is None else upper, dtype=float)
+        if self.lower.shape != (self.dof,) or self.upper.shape != (self.dof,):
+            raise FieldError(("limits",), f"joint limits must have {self.dof} values")
+        self.prismatic = np.array([not j.revolute for j in rm.joints], dtype=bool)
+        #: Metric weight of each joint (1 per rad; 1 / PRISMATIC_SCALE per mm).
+        self.weights = np.where(self.prismatic, 1.0 / PRISMATIC_SCALE, 1.0)
+        self.self_collision = bool(self_collision)
+        self.margin = float(margin)
+        self.exact = bool(exact)
+        #: With ``exact`` off: ``(points (k, dof), radius)``, configurations within
+        #: ``radius`` (weighted) of which still get the exact stage.
+        self.exact_zone: tuple[np.ndarray, float] | None = None
+        self.checks = 0
+        self.exact_checks = 0
+        self._orders: dict[int, np.ndarray] = {}
+        self._k = _kernels()
+        self._robot = self._scene = None
+        if self._k is not None:
+            self._robot = _robot_arrays(collision_model, self_collision)
+            if self._robot is None:
+                self._k = None
+            else:
+                self._scene = _scene_arrays(self.scene)
+        self._q = np.empty(self.dof)
+        self._fcl: _FastExact | None = None
+
+    # ---- inputs --------------------------------------------------------------------------
+    def batch(self, Q) -> tuple[np.ndarray, bool]:
+        Q = np.asarray(Q, dtype=float)
+        single = Q.ndim == 1
+        Q2 = np.ascontiguousarray(Q[None] if single else Q)
+        if Q2.ndim != 2 or Q2.shape[1] != self.dof:
+            raise FieldError(("q",), f"configurations must have {self.dof} joint values")
+        if not np.all(np.isfinite(Q2)):
+            raise FieldError(("q",), "joint values must be finite")
+        return Q2, single
+
+    def within_limits(self, Q, tol: float = 1e-9) -> np.ndarray:
+        """``(B,)`` whether each configuration is within the joint limits."""
+        Q2, single = self.batch(Q)
+        ok = np.all((Q2 >= self.lower - tol) & (Q2 <= self.upper + tol), axis=1)
+        return bool(ok[0]) if single else ok
+
+    # ---- checks --------------------------------------------------------------------------
+    def free(self, Q):
+        """Whether each configuration is collision-free: ``(dof,) -> bool``,
+        ``(B, dof) -> (B,)`` (limits are not checked here: see ``within_limits``)."""
+        Q2, single = self.batch(Q)
+        out = np.empty(len(Q2), dtype=np.int64)
+        self.checks += len(Q2)
+        if self._k is None:
+            from planning.collision import collides
+
+            ok = ~np.asarray(collides(self.cm, Q2, self.scene, self.self_collision,
+                                      exact=self.exact, margin=self.margin))
+            return bool(ok[0]) if single else ok
+        self._k.check_states(*self._robot[:7], Q2, self.margin, *self._robot[7:13],
+                             *self._scene, self._robot[13], *self._robot[14:], out)
+        ok = out == 0
+        for b in np.flatnonzero(~ok):
+            ok[b] = self._exact_free(Q2[b])
+        return bool(ok[0]) if single else ok
+
+    def _exact_free(self, q: np.ndarray) -> bool:
+        """The exact stage of one flagged configuration (with ``exact`` off, only within
+        ``exact_zone``)."""
+        if not self.exact:
+            zone = self.exact_zone
+            if zone is None:
+                return False
+            d = (zone[0] - q) * self.weights
+            if float(np.einsum("ij,ij->i", d, d).min()) > zone[1] ** 2:
+                return False
+        self.exact_checks += 1
+        k = self._k
+        hits = np.empty((_HIT_CAP, 3), dtype=np.int64)
+        M = np.empty((len(self.cm.names), 3, self._robot[6]))
+        n = k.state_hits(*self._robot[:7], np.ascontiguousarray(q), self.margin,
+                         *self._robot[7:13], *self._scene, self._robot[13],
+                         *self._robot[14:], hits, M)
+        if n >= _HIT_CAP:
+            from planning.collision import collides
+
+            return not bool(collides(self.cm, q, self.scene, self.self_collision, exact=True,
+                                     margin=self.margin))
+        from planning.collision.checker import _exact_parts, _pair_collides
+
+        robot, world = _exact_parts(self.cm, self.scene)
+        if self._fcl is None:
+            self._fcl = _FastExact(robot, world, self.cm.kind == "imported")
+        fast = self._fcl
+        posed: dict[int, list] = {}
+        for a, c, is_self in hits[:n]:
+            a, c = int(a), int(c)
+            if fast.ok and (is_self or world.items[c][0] == "fcl"):
+                if fast.collides(M, a, c, bool(is_self), posed, self.margin):
+                    return False
+            elif _pair_collides(robot, world, M, a, c, bool(is_self), self.margin):
+                return False
+        return True
+
+    def steps(self, a: np.ndarray, b: np.ndarray, resolution: float) -> int:
+        """Steps of the segment ``a``-``b`` so that no joint moves more than its step."""
+        d = float(np.max(np.abs(b - a) * self.weights)) if self.dof else 0.0
+        return max(1, int(math.ceil(d / resolution - 1e-12)))
+
+    def _order(self, n: int) -> np.ndarray:
+        order = self._orders.get(n)
+        if order is None:
+            order = bisection_order(n)
+            if len(self._orders) < 4096:
+                self._orders[n] = order
+        return order
+
+    def segment_free(self, a, b, resolution: float = DEFAULT_RESOLUTION,
+                     ends: bool = False) -> bool:
+        """Whether the straight segment ``a``-``b`` is free at joint steps of at most
+        ``resolution`` (its interior; the end points too with ``ends``)."""
+        a = np.ascontiguousarray(a, dtype=float)
+        b = np.ascontiguousarray(b, dtype=float)
+        if ends and not bool(np.all(self.free(np.stack([a, b])))):
+            return False
+        n = self.steps(a, b, resolution)
+        order = self._order(n)
+        if len(order) == 0:
+            return True
+        if self._k is None:
+            s = order / n
+            Q = a + (b - a) * s[:, None]
+            return bool(np.all(self.free(Q)))
+        k = self._k
+        q = self._q
+        start = 0
+        r, s = self._robot, self._scene
+        while True:
+            i = k.segment_first(*r[:7], a, b, n, order, start, self.margin, *r[7:13], *s,
+                                r[13], *r[14:], q)
+            self.checks += i - start + (i < len(order))
+            if i >= len(order):
+                return True
+            if not self._exact_free(q):
+                return False
+            start = i + 1
+
+    def path_free(self, path, resolution: float = DEFAULT_RESOLUTION) -> bool:
+        """Whether every waypoint of ``path (K, dof)`` and every straight segment between
+        consecutive ones is free."""
+        P, _ = self.batch(path)
+        if not bool(np.all(self.free(P))):
+            return False
+        return all(self.segment_free(P[i], P[i + 1], resolution) for i in range(len(P) - 1))
+
+    def pairs(self, q) -> list[tuple[str, str]]:
+        """The colliding pairs of one configuration (link, object id) or (link, link), by the
+        exact check (empty when it is free)."""
+        from planning.collision import check
+
+        q2, _ = self.batch(q)
+        report = check(self.cm, q2[0], self.scene, self.self_collision, exact=True,
+                       margin=self.margin)
+        return [tuple(p) for p in report.pairs] if report.collides else []
+
+    def clearance(self, path, resolution: float = DEFAULT_RESOLUTION, most: int = 100,
+                  reach: float = 1000.0) -> float | None:
+        """Least clearance (mm) of the robot from the scene and from itself over states of
+        ``path`` no farther apart than ``resolution`` (at most ``most`` of them, evenly
+        spread): exact (FCL) at the states and pairs the sphere model's lower bounds cannot
+        rule out, so the answer is the exact least distance over those states, capped at
+        ``reach``. None with nothing to collide with."""
+        P, _ = self.batch(path)
+        if self.scene is None and not (self.self_collision and len(self.cm.pairs)):
+            return None
+        states = [P[:1]]
+        for i in range(len(P) - 1):
+            n = self.steps(P[i], P[i + 1], resolution)
+            s = np.arange(1, n + 1) / n
+            states.append(P[i] + (P[i + 1] - P[i]) * s[:, None])
+        Q = np.concatenate(states)
+        if len(Q) > most:
+            Q = Q[np.unique(np.linspace(0, len(Q) - 1, most).round().astype(int))]
+        if self._k is None:
+            from planning.collision import check
+
+            rep = check(self.cm, Q, self.scene, self.self_collision, exact=True,
+                        exact_distance=True, margin=self.margin)
+            return float(min(np.min(rep.distance), reach))
+        r, sc = self._robot, self._scene
+        L, n_o = len(self.cm.names), len(sc[1])
+        bounds = []
+        for q in Q:
+            out_scene = np.empty((L, n_o))
+            out_self = np.empty(len(r[13]))
+            out_tab = np.empty(len(r[14]))
+            M = np.empty((L, 3, r[6]))
+            self._k.state_bounds(*r[:7], np.ascontiguousarray(q), reach, *r[7:13], *sc,
+                                 *r[13:], out_scene, out_self, out_tab, M)
+            lb = min(reach, float(out_scene.min(initial=reach)),
+                     float(out_self.min(initial=reach)), float(out_tab.min(initial=reach)))
+            bounds.append((lb, out_scene, out_self, out_tab, M))
+        bounds.sort(key=lambda b: b[0])
+        best = reach
+        for lb, out_scene, out_self, out_tab, M in bounds:
+            if lb >= best:
+                break
+            items = [(float(out_scene[a, o]), a, o, False)
+                     for a, o in zip(*np.nonzero(out_scene < best))]
+            items += [(float(out_self[k]), int(r[13][k, 0]), int(r[13][k, 1]), True)
+                      for k in np.flatnonzero(out_self < best)]
+            items += [(float(out_tab[k]), int(r[14][k, 6]), int(r[14][k, 7]), True)
+                      for k in np.flatnonzero(out_tab < best)]
+            items.sort()
+            for d_lb, a, c, is_self in items:
+                if d_lb >= best:
+                    break
+                best = min(best, self._exact_distance(M, int(a), int(c), is_self, best))
+        return float(best)
+
+    def _exact_distance(self, M: np.ndarray, a: int, c: int, is_self: bool,
+                        reach: float) -> float:
+        from planning.collision.checker import _exact_parts
+        from planning.collision.exact import pair_distance
+
+        robot, world = _exact_parts(self.cm, self.scene)
+        if self._fcl is None:
+            self._fcl = _FastExact(robot, world, self.cm.kind == "imported")
+        fast = self._fcl
+        if fast.ok and (is_self or world.items[c][0] == "fcl"):
+            return fast.distance(M, a, c, is_self)
+        return pair_distance(robot, world, M, a, c, is_self, reach=reach)
+
+
+class _FastExact:
+    """The exact stage with the FCL objects of every link built once and posed in place
+    (imported robots; ``ok`` False otherwise)."""
+
+    def __init__(self, robot: Any, world: Any, imported: bool) -> None:
+        import fcl
+
+        from planning.collision.exact import _collide
+
+        self.fcl = fcl
+        self.collide = _collide
+        self.ok = imported
+        self.links: list[list[tuple[Any, np.ndarray]]] = []
+        if imported:
+            for shapes in robot.shapes:
+                self.links.append([(fcl.CollisionObject(sh.geom), np.asarray(sh.T, float))
+                                   for sh in shapes])
+        self.world = world
+
+    def _pose(self, M: np.ndarray, k: int, posed: dict) -> list:
+        objs = posed.get(k)
+        if objs is None:
+            T = np.eye(4)
+            T[:3] = M[k]
+            objs = []
+            for obj, G in self.links[k]:
+                W = T @ G
+                obj.setTransform(self.fcl.Transform(W[:3, :3], W[:3, 3]))
+                objs.append(obj)
+            posed[k] = objs
+        return objs
+
+    def collides(self, M: np.ndarray, a: int, c: int, is_self: bool, posed: dict,
+                 margin: float) -> bool:
+        A = self._pose(M, a, posed)
+        B = self._pose(M, c, posed) if is_self else [self.world.items[c][1]]
+        return any(self.collide(o1, o2, margin) for o1 in A for o2 in B)
+
+    def distance(self, M: np.ndarray, a: int, c: int, is_self: bool) -> float:
+        from planning.collision.exact import _distance
+
+        posed: dict = {}
+        A = self._pose(M, a, posed)
+        B = self._pose(M, c, posed) if is_self else [self.world.items[c][1]]
+        return min(_distance(o1, o2) for o1 in A for o2 in B)
+
+
+# ---- arrays for the kernels ---------------------------------------------------------------------
+def _kernels():
+    from kinematics import fast
+
+    if fast.kernels() is None:
+        return None
+    try:
+        import planning.motion._kernels as k
+    except ImportError:  # pragma: no cover - numba missing
+        return None
+    return k
+
+
+def _partials(chain: Any, q: np.ndarray) -> np.ndarray:
+    """``P_j (n + 1, 4, 4)`` of the kernels' layout at one configuration."""
+    n = len(q)
+    out = np.empty((n + 1, 4, 4))
+    T = np.eye(4)
+    out[0] = T
+    for i in range(n):
+        Ci = np.eye(4)
+        Ci[:3] = chain.C[i]
+        T = T @ Ci
+        x = q[i] + chain.offset[i]
+        M = np.eye(4)
+        if chain.prismatic[i]:
+            M[2, 3] = x
+        else:
+            c, s = math.cos(x), math.sin(x)
+            M[:2, :2] = [[c, -s], [s, c]]
+        T = T @ M
+        out[i + 1] = T
+    return out
+
+
+def _calibrate(chain: Any, targets, dof: int, lower: np.ndarray, upper: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray] | None:
+    """``body (E,)``, ``X (E, 3, 4)`` such that frame ``e`` is ``P_body[e] @ X[e]`` at
+    every configuration, found at a few seeded configurations; None if some frame is not
+    carried by one body of the chain."""
+    rng = np.random.default_rng(20261129)
+    lo = np.where(np.isfinite(lower), lower, -math.pi)
+    hi = np.where(np.isfinite(upper), upper, math.pi)
+    Q = lo + (hi - lo) * rng.random((4, dof))
+    F = targets(Q)                       # (4, E, 4, 4)
+    P = np.array([_partials(chain, q) for q in Q])   # (4, n + 1, 4, 4)
+    E = F.shape[1]
+    body = np.empty(E, dtype=np.int64)
+    X = np.empty((E, 3, 4))
+    scale = max(1.0, float(np.abs(F[..., :3, 3]).max()))
+    for e in range(E):
+        for j in range(dof + 1):
+            Xe = np.linalg.inv(P[0, j]) @ F[0, e]
+            if np.abs(P[:, j] @ Xe - F[:, e]).max() <= 1e-9 * scale:
+                body[e], X[e] = j, Xe[:3]
+                break
+        else:
+            return None
+    return body, X
+
+
+def _robot_arrays(cm: Any, self_collision: bool) -> tuple | None:
+    """The robot's arrays in the kernels' argument order, or None when its links cannot be
+    carried by the chain layout."""
+    from kinematics.fast import chain_of
+    from kinematics.fk import fk_frames
+
+    rm = cm.source.model if cm.kind == "imported" else cm.source
+    chain = chain_of(rm)
+    lower, upper = np.asarray(rm.lower, float), np.asarray(rm.upper, float)
+    if cm.kind == "imported":
+        cal = _calibrate(chain, lambda Q: cm.link_poses(Q), cm.dof, lower, upper)
+        ends = np.zeros(len(cm.names), dtype=np.int64)
+        w = 4
+    else:
+        cal = _calibrate(chain, lambda Q: fk_frames(rm, Q), cm.dof, lower, upper)
+        ends = np.ascontiguousarray(cm.capsule_link, dtype=np.int64)
+        w = 2
+    if cal is None:
+        return None
+    body, X = cal
+    t = cm.tree
+    c = np.ascontiguousarray
+    if self_collision and len(cm.pairs):
+        pairs = c(cm.pairs[cm.sphere_pairs], dtype=np.int64).reshape(-1, 2)
+        tab_i, tab_f, values = _tables(cm)
+    else:
+        pairs = np.empty((0, 2), dtype=np.int64)
+        tab_i, tab_f, values = np.empty((0, 8), np.int64), np.empty((0, 6)), np.empty(0)
+    return (c(chain.C), c(chain.prismatic), c(chain.offset), c(body), c(X), ends, w,
+            c(t.root), c(t.root_r), c(t.group), c(t.group_r), c(t.leaf), c(t.leaf_r),
+            pairs, tab_i, tab_f, values)
+
+
+def _tables(cm: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    tab_i = np.zeros((len(cm.tables), 8), dtype=np.int64)
+    tab_f = np.zeros((len(cm.tables), 6))
+    values = []
+    first = 0
+    for t, x in enumerate(cm.tables):
+        k = len(x.joints)
+        if k not in (1, 2):
+            raise ValueError("pair tables over one or two joints only")
+        tab_i[t, :2] = -1
+        tab_i[t, :k] = x.joints
+        tab_i[t, 2:2 + k] = x.shape
+        tab_i[t, 4], tab_i[t, 5], tab_i[t, 6], tab_i[t, 7] = first, k, x.a, x.b
+        tab_f[t, :k] = x.lo
+        tab_f[t, 2:2 + k] = x.step
+        tab_f[t, 4:4 + k] = x.rho
+        values.append(np.asarray(x.values, dtype=float).ravel())
+        first += values[-1].size
+    return tab_i, tab_f, (np.concatenate(values) if values else np.empty(0))
+
+
+def _scene_arrays(scene: Any) -> tuple:
+    """``(has_scene, kind, T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells,
+    set_meta)`` of a ``CollisionScene`` (or empty ones)."""
+    if scene is None:
+        return (False, np.zeros(0, np.int64), np.zeros((0, 3, 4)), np.zeros((0, 4)),
+                np.zeros((0, 6)), np.full(1, np.inf), np.array([0, 0, 0, 1, 1, 1, 1.0]),
+                np.array([-np.inf] * 3 + [np.inf] * 3), np.zeros((0, 4)),
+                np.zeros(1, np.int64), np.zeros((0, 9)))
+    from planning.collision.distance import frames_along
+
+    cs = scene.compiled()
+    n = cs.n
+    kind = np.full(n, -1, dtype=np.int64)
+    T_inv = np.zeros((n, 3, 4))
+    par = np.zeros((n, 4))
+
+    def inverse(T):
+        R, p = T[:3, :3], T[:3, 3]
+        out = np.empty((3, 4))
+        out[:, :3] = R.T
+        out[:, 3] = -R.T @ p
+        return out
+
+    for k, i in enumerate(cs.box_obj):
+        kind[i], T_inv[i], par[i, :3] = 0, inverse(cs.box_T[k]), 0.5 * cs.box_size[k]
+    for k, i in enumerate(cs.cyl_obj):
+        kind[i], T_inv[i] = 1, inverse(cs.cyl_T[k])
+        par[i, :2] = cs.cyl_r[k], 0.5 * cs.cyl_h[k]
+    for k, i in enumerate(cs.sph_obj):
+        T = np.eye(4)
+        T[:3, 3] = cs.sph_c[k]
+        kind[i], T_inv[i], par[i, 0] = 2, inverse(T), cs.sph_r[k]
+    for k, i in enumerate(cs.cap_obj):
+        A, B = cs.cap_A[k], cs.cap_B[k]
+        T = frames_along(0.5 * (A + B), B - A)
+        kind[i], T_inv[i] = 3, inverse(T)
+        par[i, :2] = cs.cap_r[k], 0.5 * float(np.linalg.norm(B - A))
+    balls, cells, meta = [], [np.zeros(1, np.int64)], []
+    n_cells = 0
+    for s, (i, bs) in enumerate(cs.sets):
+        kind[i], par[i, 0] = 4, s
+        B, start, m = _ball_grid(bs.balls, n_cells)
+        balls.append(B)
+        cells.append(start[1:] + sum(len(x) for x in balls[:-1]))
+        meta.append(m)
+        n_cells += len(start) - 1
+    aabb = np.array([np.r_[a, b] for a, b in cs.bounds]).reshape(-1, 6)
+    if n > GRID_OBJECTS:
+        lo, h, shape, values = cs.grid
+        grid_meta = np.r_[lo, h, shape].astype(float)
+    else:   # few objects: tested one by one, no grid to build
+        values, grid_meta = np.full(1, np.inf), np.array([0, 0, 0, 0, 1, 1, 1.0])
+    c = np.ascontiguousarray
+    return (True, kind, c(T_inv), c(par), c(aabb), c(values, dtype=float), grid_meta,
+            np.r_[cs.lo, cs.hi].astype(float),
+            c(np.concatenate(balls)) if balls else np.zeros((0, 4)),
+            c(np.concatenate(cells)).astype(np.int64),
+            c(np.array(meta)).reshape(-1, 9))
+
+
+def _ball_grid(balls: np.ndarray, first: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Balls sorted by the cell of their centre on a grid over them, the cells' starts
+    ``(cells + 1,)`` (from 0) and the set's meta row (lo, h, shape, first cell, rmax)."""
+    lo = balls[:, :3].min(0)
+    hi = balls[:, :3].max(0)
+    ext = np.maximum(hi - lo, 1e-9)
+    r = float(np.median(balls[:, 3]))
+    h = max(4.0 * r, float(np.cbrt(ext.prod() / _SET_CELLS)), 1e-6)
+    shape = np.maximum(np.floor(ext / h).astype(np.int64) + 1, 1)
+    while shape.prod() > _SET_CELLS:
+        h *= 1.1
+        shape = np.maximum(np.floor(ext / h).astype(np.int64) + 1, 1)
+    idx = np.minimum(np.floor((balls[:, :3] - lo) / h).astype(np.int64), shape - 1)
+    flat = (idx[:, 0] * shape[1] + idx[:, 1]) * shape[2] + idx[:, 2]
+    order = np.argsort(flat, kind="stable")
+    counts = np.bincount(flat, minlength=int(shape.prod()))
+    start = np.r_[0, np.cumsum(counts)].astype(np.int64)
+    meta = np.r_[lo, h, shape, first, balls[:, 3].max()].astype(float)
+    return balls[order], start, meta

@@ -1,0 +1,449 @@
+"""``plan_motion``: a collision-free joint-space move of any arm, from a configuration to a
+configuration or to a tool pose, simplified and timed.
+
+Steps: validate the input (``FieldError`` naming the field); check the start (limits,
+collision); the goal configurations (the given one, or every IK branch of the goal pose within
+the limits, numeric IK with several seeds for robots without a closed form; the free ones are
+the goals); search (``planner``: ``rrt_connect``, ``rrt_star`` or ``auto``); simplify
+(shortcuts); time the path (time-optimal along a polyline whose corners are blended, the
+blends checked for collision and tightened until free, sharp corners at worst); measure the
+least clearance. Every outcome other than bad input is a ``MotionStatus`` with a message
+naming why (the colliding pair, the joint out of limits).
+
+``rrt_connect`` (and ``auto``) first runs the compiled RRT-Connect on the sphere model alone
+(``search.rrt_connect_compiled``: a state the spheres flag counts as a collision, so its paths
+are free without the exact stage) for up to ``COMPILED_SHARE`` of the time limit, restarting
+with growing budgets; if that finds nothing (a passage narrower than the spheres' slack, or a
+start or goal only the exact stage clears), RRT-Connect in Python confirms flagged states
+exactly for the rest of the time (``search.rrt_connect``). The path is then shortened on the
+spheres (compiled) and, if it came from the exact search, on the exact shapes too.
+``auto`` with a time limit past ``AUTO_REFINE_AFTER`` s also hands the shortened path to RRT*
+as the bound to beat until ``AUTO_REFINE_SHARE`` of the time, then shortens the best path
+again. ``rrt_star`` searches with RRT* for the whole time limit.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any
+
+import numpy as np
+
+from kinematics.errors import FieldError
+
+from .checker import DEFAULT_RESOLUTION, MotionChecker
+from .search import (
+    path_length,
+    rrt_connect,
+    rrt_connect_compiled,
+    rrt_star,
+    shortcut,
+    shortcut_compiled,
+    sphere_free,
+)
+
+__all__ = ["MotionStatus", "MotionResult", "plan_motion", "PLANNERS", "MAX_RESOLUTION",
+           "MAX_TIME_LIMIT"]
+
+PLANNERS = ("auto", "rrt_connect", "rrt_star")
+#: Coarsest joint step allowed between checked states (rad).
+MAX_RESOLUTION = 0.5
+#: Longest time limit of one problem (s).
+MAX_TIME_LIMIT = 3600.0
+#: ``auto`` refines with RRT* when the time limit exceeds this (s) ...
+AUTO_REFINE_AFTER = 10.0
+#: ... for at most this share of the time limit.
+AUTO_REFINE_SHARE = 0.5
+#: Seeds of numeric IK for a goal pose of a robot without a closed form.
+IK_SEEDS = 8
+#: Without compiled kernels, the search starts on the sphere model alone (a flagged state
+#: counts as a collision, except within ``EXACT_ZONE`` of the start and goals) for this share
+#: of the time limit, at most ``SPHERE_PHASE_MAX`` s, then confirms flagged states exactly:
+#: cheap in open space, exact where the way is narrow.
+SPHERE_PHASE_SHARE = 0.1
+SPHERE_PHASE_MAX = 0.2
+EXACT_ZONE = 0.3
+#: Share of the time limit the compiled search on the sphere model alone may take before
+#: the one that settles flagged states exactly takes over.
+SPHERE_SHARE = 0.1
+#: Shortcut attempts of the exact pass after the sphere pass.
+SHORTCUT_ATTEMPTS_EXACT = 40
+#: Corner blends tried for the trajectory: largest deviation from a corner (weighted rad).
+BLEND_DEVIATIONS = (0.05, 0.01, 0.002)
+
+
+class MotionStatus(StrEnum):
+    """How a motion plan ended."""
+
+    OK = "ok"
+    START_IN_COLLISION = "start_in_collision"
+    GOAL_IN_COLLISION = "goal_in_collision"
+    GOAL_UNREACHABLE = "goal_unreachable"
+    OUT_OF_LIMITS = "out_of_limits"
+    NO_PATH = "no_path"
+    TIMEOUT = "timeout"
+
+
+@dataclass
+class MotionResult:
+    """A motion plan (module docstring). ``path (K, dof)``: waypoints whose straight
+    segments are free at ``resolution``; ``length``: the sum of the segments' Euclidean
+    lengths (rad, mm for prismatic joints); times in s; ``min_clearance`` mm."""
+
+    status: MotionStatus
+    message: str
+    path: np.ndarray
+    length: float = math.nan
+    planning_time_s: float = 0.0
+    simplify_time_s: float = 0.0
+    min_clearance: float | None = None
+    trajectory: Any = None
+    goal: np.ndarray | None = None
+    pairs: list = field(default_factory=list)
+    planner: str = ""
+    resolution: float = DEFAULT_RESOLUTION
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        return self.status is MotionStatus.OK
+
+    def to_dict(self, joint_names: list[str] | None = None, samples: int = 200
+                ) -> dict[str, Any]:
+        """JSON-ready; the trajectory sampled at ``samples`` equal steps (and its knots'
+        duration)."""
+        def num(x):
+            return None if x is None or not math.isfinite(float(x)) else float(x)
+
+        out: dict[str, Any] = {
+            "status": self.status.value, "message": self.message,
+            "path": self.path.tolist(), "length": num(self.length),
+            "planning_time_s": float(self.planning_time_s),
+            "simplify_time_s": float(self.simplify_time_s),
+            "min_clearance": num(self.min_clearance),
+            "goal": None if self.goal is None else self.goal.tolist(),
+            "pairs": [list(p) for p in self.pairs], "planner": self.planner,
+            "resolution": self.resolution, "stats": self.stats, "trajectory": None,
+        }
+        if joint_names is not None:
+            out["joints"] = list(joint_names)
+        if self.trajectory is not None:
+            T = self.trajectory
+            t = np.linspace(0.0, T.duration, max(2, int(samples)))
+            out["trajectory"] = {"t": t.tolist(), "q": T.evaluate(t).tolist(),
+                                 "qd": T.evaluate(t, 1).tolist(),
+                                 "qdd": T.evaluate(t, 2).tolist(),
+                                 "duration": float(T.duration)}
+        return out
+
+
+# ---- input ------------------------------------------------------------------------------------
+def _vector(value, dof: int, loc: tuple) -> np.ndarray:
+    try:
+        v = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise FieldError(loc, f"{loc[-1]} must be a list of {dof} numbers") from None
+    if v.shape != (dof,):
+        raise FieldError(loc, f"{loc[-1]} must have {dof} joint values, got shape "
+                         f"{list(v.shape)}")
+    if not np.all(np.isfinite(v)):
+        raise FieldError(loc, f"{loc[-1]} must be finite")
+    return v
+
+
+def _number(value, loc: tuple, lo: float, hi: float, open_low: bool = True) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) \
+            or not math.isfinite(value) or (value <= lo if open_low else value < lo) \
+            or value > hi:
+        low = f"> {lo}" if open_low else f">= {lo}"
+        raise FieldError(loc, f"{loc[-1]} must be a number {low} and <= {hi}")
+    return float(value)
+
+
+def _limit_message(checker: MotionChecker, q: np.ndarray, what: str) -> str | None:
+    names = [j.name for j in checker.robot_model.joints]
+    for i in range(checker.dof):
+        if q[i] < checker.lower[i] - 1e-9 or q[i] > checker.upper[i] + 1e-9:
+            return (f"{what} is out of limits: joint '{names[i]}' = {q[i]:.6g}, limits "
+                    f"[{checker.lower[i]:.6g}, {checker.upper[i]:.6g}]")
+    return None
+
+
+def _pairs_text(pairs: list) -> str:
+    return ", ".join(f"{a} - {b}" for a, b in pairs[:4]) + (" ..." if len(pairs) > 4 else "")
+
+
+def _goal_branches(checker: MotionChecker, model: Any, pose: np.ndarray, seed: int
+                   ) -> tuple[np.ndarray, str]:
+    """Every IK branch of ``pose`` within the limits ``(K, dof)`` (possibly none), and a
+    message saying why there is none."""
+    from kinematics.ik import IKStatus, NumericOptions, analytic_solver, solve_ik
+
+    found, message = [], ""
+    try:
+        if analytic_solver(model) is not None:
+            runs = [solve_ik(model, pose, all_solutions=True)[0]]
+        else:
+            runs = [solve_ik(model, pose, method="numeric", all_solutions=True,
+                             options=NumericOptions(seed=seed + k))[0]
+                    for k in range(IK_SEEDS)]
+    except ValueError as exc:
+        raise FieldError(("goal", "pose"), f"goal.pose: {exc}") from None
+    for r in runs:
+        if r.status is IKStatus.OK or len(r.solutions):
+            found.append(np.atleast_2d(r.solutions))
+        if not message:
+            message = r.message
+    if not found:
+        return np.empty((0, checker.dof)), message or "no IK solution"
+    Q = np.concatenate(found)
+    from kinematics.fk import fk
+
+    # Keep solutions that reach the pose (within 0.01 mm, 1e-5 rad) and the limits.
+    T = fk(model, Q)
+    pos = np.linalg.norm(T[:, :3, 3] - pose[:3, 3], axis=1)
+    R = np.einsum("bji,jk->bik", T[:, :3, :3], pose[:3, :3])
+    ang = np.arccos(np.clip((np.trace(R, axis1=1, axis2=2) - 1) / 2, -1, 1))
+    ok = (pos <= 1e-2) & (ang <= 1e-5) & checker.within_limits(Q)
+    Q = Q[ok]
+    if len(Q) == 0:
+        return Q.reshape(0, checker.dof), message or "no IK solution within the joint limits"
+    # Distinct branches only.
+    keep = [0]
+    for i in range(1, len(Q)):
+        if np.min(np.abs(Q[keep] - Q[i]).max(axis=1)) > 1e-6:
+            keep.append(i)
+    return Q[keep], ""
+
+
+# ---- the plan -----------------------------------------------------------------------------------
+def plan_motion(checker: MotionChecker, start, goal=None, *, goal_pose=None, model=None,
+                planner: str = "auto", time_limit: float = 5.0, seed: int = 0,
+                resolution: float = DEFAULT_RESOLUTION, simplify: bool = True,
+                trajectory: bool = True, limits=None, hydraulics=None,
+                progress=None) -> MotionResult:
+    """Plan a collision-free move of ``checker``'s robot from ``start`` to ``goal`` (a
+    configuration) or ``goal_pose`` (a tool pose ``(4, 4)`` mm; ``model`` gives the IK), in
+    at most ``time_limit`` s of search (module docstring). ``limits``
+    (``planning.trajectories.Limits``) and ``hydraulics`` time the trajectory (default: the
+    model's joint speeds and the arm accelerations of ``planning.paths.arm``). ``progress``
+    receives the fraction of the time limit used and may raise to stop."""
+    t0 = time.perf_counter()
+    dof = checker.dof
+    q_start = _vector(start, dof, ("start",))
+    if (goal is None) == (goal_pose is None):
+        raise FieldError(("goal",), "goal: give a configuration (q) or a pose")
+    if planner not in PLANNERS:
+        raise FieldError(("planner",), f"planner must be one of {', '.join(PLANNERS)}")
+    time_limit = _number(time_limit, ("time_limit",), 0.0, MAX_TIME_LIMIT)
+    resolution = _number(resolution, ("resolution",), 0.0, MAX_RESOLUTION)
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
+        raise FieldError(("seed",), "seed must be an integer")
+    rng = np.random.default_rng(int(seed))
+    if goal is not None:
+        q_goal = _vector(goal, dof, ("goal", "q"))
+        pose = None
+    else:
+        pose = np.asarray(goal_pose, dtype=float)
+        if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
+            raise FieldError(("goal", "pose"), "goal.pose must be a finite 4x4 matrix")
+        if model is None:
+            model = checker.robot_model
+    deadline = t0 + time_limit
+    base = {"planner": planner, "resolution": resolution}
+
+    def result(status, message, **kw) -> MotionResult:
+        kw.setdefault("path", np.empty((0, dof)))
+        return MotionResult(status, message, planning_time_s=time.perf_counter() - t0,
+                            **base, **kw)
+
+    msg = _limit_message(checker, q_start, "the start")
+    if msg:
+        return result(MotionStatus.OUT_OF_LIMITS, msg)
+    if not checker.free(q_start):
+        pairs = checker.pairs(q_start)
+        return result(MotionStatus.START_IN_COLLISION,
+                      f"the start is in collision: {_pairs_text(pairs)}", pairs=pairs)
+    if pose is None:
+        msg = _limit_message(checker, q_goal, "the goal")
+        if msg:
+            return result(MotionStatus.OUT_OF_LIMITS, msg)
+        goals = q_goal[None]
+    else:
+        goals, why = _goal_branches(checker, model, pose, int(seed))
+        if len(goals) == 0:
+            return result(MotionStatus.GOAL_UNREACHABLE, f"the goal pose is unreachable: {why}")
+    free = np.atleast_1d(checker.free(goals))
+    if not free.any():
+        pairs = checker.pairs(goals[0])
+        what = "the goal is" if pose is None else f"every IK branch of the goal pose " \
+            f"({len(goals)}) is"
+        return result(MotionStatus.GOAL_IN_COLLISION,
+                      f"{what} in collision: {_pairs_text(pairs)}", pairs=pairs,
+                      goal=goals[0])
+    goals = goals[free]
+
+    exact = checker.exact
+    switch_at = time.perf_counter() + min(SPHERE_PHASE_SHARE * time_limit, SPHERE_PHASE_MAX)
+    if exact:
+        checker.exact = False
+        checker.exact_zone = (np.vstack([q_start[None], goals]), EXACT_ZONE)
+
+    def stop() -> bool:
+        now = time.perf_counter()
+        if progress is not None:
+            progress(min(1.0, (now - t0) / time_limit))
+        if exact and not checker.exact and now >= switch_at:
+            checker.exact = True
+        return now >= deadline
+
+    try:
+        return _search(checker, q_start, goals, planner, rng, stop, resolution, simplify,
+                       time_limit, t0, exact, result, trajectory, limits, hydraulics)
+    finally:
+        checker.exact = exact
+        checker.exact_zone = None
+
+
+def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, time_limit, t0,
+            exact, result, trajectory, limits, hydraulics) -> MotionResult:
+    checks0, exact0 = checker.checks, checker.exact_checks
+    stats: dict[str, Any] = {}
+    used = planner
+    path, mode = None, None
+    if planner == "rrt_star":
+        path, st = rrt_star(checker, q_start, goals, rng, stop, resolution)
+    elif checker._k is not None:
+        used = "rrt_connect"
+        path, st, mode = _compiled_search(checker, q_start, goals, rng, stop, resolution,
+                                          time_limit, exact)
+    else:
+        used = "rrt_connect"
+        path, st = rrt_connect(checker, q_start, goals, rng, stop, resolution)
+    stats.update(st)
+    if path is None:
+        return result(MotionStatus.TIMEOUT,
+                      f"no path found within the time limit of {time_limit:g} s "
+                      f"({st.get('nodes', 0)} tree nodes)",
+                      stats={**stats, "checks": checker.checks - checks0})
+    stats["raw_waypoints"] = len(path)
+    stats["raw_length"] = path_length(path)
+    t_simplify = time.perf_counter()
+    if simplify and len(path) > 2:
+        # Simplification gets its own budget: half the time limit, at least 0.2 s.
+        s_deadline = time.perf_counter() + max(0.2, 0.5 * time_limit)
+
+        def s_stop() -> bool:
+            return time.perf_counter() >= s_deadline
+
+        if mode is not None:
+            # Compiled, with the checker the path was found with.
+            checker.exact, checker.exact_zone = exact, None
+            path = shortcut_compiled(checker, path, rng, resolution, exact=mode == "exact")
+        else:
+            checker.exact = False
+            path = shortcut(checker, path, rng, s_stop, resolution)
+            if exact:
+                checker.exact, checker.exact_zone = True, None
+                path = shortcut(checker, path, rng, s_stop, resolution,
+                                attempts=SHORTCUT_ATTEMPTS_EXACT)
+        if planner == "auto" and time_limit > AUTO_REFINE_AFTER:
+            checker.exact, checker.exact_zone = exact, None
+            r_deadline = t0 + AUTO_REFINE_SHARE * time_limit
+            better, st2 = rrt_star(checker, q_start, goals, rng,
+                                   lambda: time.perf_counter() >= r_deadline, resolution,
+                                   initial=path)
+            stats["refine"] = st2
+            if better is not None and path_length(better, checker.weights) < \
+                    path_length(path, checker.weights):
+                path = shortcut(checker, better, rng,
+                                lambda: time.perf_counter() >= s_deadline + 1.0, resolution)
+                used = "rrt_connect+rrt_star"
+    simplify_time = time.perf_counter() - t_simplify
+    checker.exact, checker.exact_zone = exact, None
+    stats["checks"] = checker.checks - checks0
+    stats["exact_checks"] = checker.exact_checks - exact0
+    planning_time = time.perf_counter() - t0
+    goal_reached = path[-1].copy()
+    out = MotionResult(MotionStatus.OK, "ok", path, length=path_length(path),
+                       planning_time_s=planning_time, simplify_time_s=simplify_time,
+                       goal=goal_reached, planner=used, resolution=resolution, stats=stats)
+    if trajectory:
+        out.trajectory, note = _trajectory(checker, path, resolution, limits, hydraulics)
+        if note:
+            out.stats["trajectory"] = note
+    out.min_clearance = checker.clearance(path, resolution)
+    return out
+
+
+def _compiled_search(checker: MotionChecker, q_start: np.ndarray, goals: np.ndarray,
+                     rng: np.random.Generator, stop, resolution: float, time_limit: float,
+                     exact: bool) -> tuple[np.ndarray | None, dict, str | None]:
+    """The compiled RRT-Connect: on the sphere model alone (a flagged state counts as a
+    collision; from the start to the goals the spheres clear, when they clear the start) for
+    up to ``SPHERE_SHARE`` of the time limit, which is fast where the way is wide; then, with
+    ``exact``, settling flagged states exactly for the rest. Answers the path, statistics
+    and the mode that found it (``"spheres"``, ``"exact"``)."""
+    sf = sphere_free(checker, np.vstack([q_start[None], goals]))
+    stats: dict[str, Any] = {}
+    checker.exact, checker.exact_zone = exact, None
+    if sf[0] and sf[1:].any():
+        s_deadline = time.perf_counter() + (SPHERE_SHARE if exact else 1.0) * time_limit
+        path, st = rrt_connect_compiled(
+            checker, q_start, goals[sf[1:]], rng,
+            lambda: stop() or time.perf_counter() >= s_deadline, resolution)
+        stats["spheres"] = st
+        if path is not None:
+            return path, stats, "spheres"
+    if not exact:
+        return None, stats, None
+    path, st = rrt_connect_compiled(checker, q_start, goals, rng, stop, resolution,
+                                    exact=True)
+    stats["exact"] = st
+    stats["nodes"] = st.get("nodes", 0) + stats.get("spheres", {}).get("nodes", 0)
+    return path, stats, "exact"
+
+
+def _trajectory(checker: MotionChecker, path: np.ndarray, resolution: float, limits,
+                hydraulics) -> tuple[Any, str]:
+    """The time-optimal trajectory along ``path`` with blended corners whose samples are
+    free (tightening the blends until they are), and a note of what was done."""
+    from planning.paths.arm import ARM_ACCELERATION
+    from planning.trajectories.joint_path import smooth_polyline
+    from planning.trajectories.topp import time_optimal
+    from planning.trajectories.trajectory import Limits
+
+    rm = checker.robot_model
+    if limits is None:
+        acc = np.where(rm.revolute, ARM_ACCELERATION[0], ARM_ACCELERATION[1])
+        limits = Limits(velocity=np.asarray(rm.velocity_limits), acceleration=acc)
+    if hydraulics is None:
+        from planning.trajectories.hydraulic import hydraulic_limits
+
+        hydraulics = hydraulic_limits(rm)
+    corners = len(path) > 2
+    for dev in (BLEND_DEVIATIONS if corners else (0.0,)) + ((0.0,) if corners else ()):
+        jp = smooth_polyline(path, dev)
+        res = time_optimal(jp, limits, hydraulics)
+        if not res.success:
+            return None, f"not timed: {res.message}"
+        traj = res.trajectory
+        if dev == 0.0 or _trajectory_free(checker, traj, resolution):
+            return traj, "" if dev > 0 or not corners else "corners kept sharp (stops)"
+    return None, "no collision-free blend"
+
+
+def _trajectory_free(checker: MotionChecker, traj: Any, resolution: float) -> bool:
+    """Whether the trajectory is free at states no farther apart than ``resolution``."""
+    n = 64
+    while True:
+        t = np.linspace(0.0, traj.duration, n)
+        Q = traj.evaluate(t)
+        step = np.max(np.abs(np.diff(Q, axis=0)) * checker.weights) if n > 1 else 0.0
+        if step <= resolution or n > 200_000:
+            break
+        n = int(n * step / resolution * 1.2) + 1
+    return bool(np.all(checker.free(Q)))
