@@ -51,7 +51,7 @@ def exact_free(q: np.ndarray) -> bool:
     return bool(_local.checker._exact_free(np.array(q)))
 
 
-@njit(**_JIT)
+@njit(cache=True, error_model="numpy", boundscheck=False)   # objmode: no nogil
 def _free_state(R, S, q, margin, T, F, M, hits, Wr, Wg, Wl, done, all_o, near_r, near_g,
                 mode):
     """Whether configuration ``q`` is free: the spheres clear it, or (``mode[0] == 1``)

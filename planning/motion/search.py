@@ -29,7 +29,7 @@ from .checker import MotionChecker, _kernels
 __all__ = ["Tree", "rrt_connect", "rrt_star", "shortcut", "path_length", "DEFAULT_STEP"]
 
 #: Longest edge a search adds in one extension (weighted joint-space units, rad).
-DEFAULT_STEP = 1.0
+DEFAULT_STEP = 1.5
 
 Stop = Callable[[], bool]
 
@@ -168,7 +168,7 @@ def rrt_connect(checker: MotionChecker, start: np.ndarray, goals: np.ndarray,
 
 
 #: Joint step (rad) at which RRT-Connect checks the edges it adds (``rrt_connect``).
-LAZY_RESOLUTION = 0.05
+LAZY_RESOLUTION = 0.1
 
 
 def _validated(checker: MotionChecker, ta: Tree, k: int, tb: Tree, j: int, a_is_start: bool,
@@ -489,7 +489,7 @@ def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.nd
 
 
 def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.Generator,
-                      resolution: float, attempts: int = 100, patience: int = 10,
+                      resolution: float, attempts: int = 100, patience: int = 30,
                       exact: bool = False) -> np.ndarray:
     """``shortcut`` compiled: on the sphere model alone (the path must be sphere-free at
     ``resolution``), or with ``exact`` confirming flagged states on the exact shapes; the
