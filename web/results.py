@@ -1,6 +1,7 @@
 """A finished job's result turned into what the viewer draws: a ``Plan``.
 
-Pure data, no viser. Each job kind the viewer can show has a drawer here, registered with
+Pure data: no scene node is made here (``web.scene.draw_plan`` draws a plan, ``web.site`` its
+scene objects). Each job kind the viewer can show has a drawer here, registered with
 ``drawer(kind)``: the name must be a registered job kind (``app.jobs.catalog``) and may be
 registered once; both are checked when this module is imported. A kind is drawable exactly
 when it has a drawer (``drawable``).
@@ -25,6 +26,14 @@ What each drawer reads, in mm, rad, s:
   drilling order) and ``arms[arm].q`` (the arm's motion), ``min_distance``, ``collisions``.
 * ``tracking``: params ``robot``; result ``t``, ``q`` (the arm's motion), ``x_desired`` (the
   desired tool path), ``mean_error``, ``max_error``.
+* ``motion``: params ``robot``, ``scene`` (its objects, inline since submission: drawn as a
+  stored scene is), ``start`` and ``goal`` (or ``problems``); result ``joints`` (must be the
+  robot's), and one problem's ``status``, ``path``, ``trajectory {t, q}``, ``goal``, ... (a
+  batch: ``problems``, of which the first solved one is drawn, or the one ``problem``
+  names). The arm moves along the trajectory; without one, along ``path`` at a constant
+  joint speed in ``DEFAULT_SECONDS``. The tool's route (FK of the samples) is a polyline, the
+  waypoints' tool points balls. ``plan_from_motion`` draws the answer of
+  ``POST /robots/{id}/motion`` the same way (no scene: it carries none).
 """
 
 from __future__ import annotations
@@ -36,13 +45,19 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
+from app.api.schemas import MotionAnswerIn
 from app.jobs.catalog import KINDS
 from app.jobs.drilling_kinds import MultiarmParams, MultiarmResult, SequenceParams, SequenceResult
 from app.jobs.kinds import WorkspaceParams, WorkspaceResult, error_text
+from app.jobs.motion_kinds import MotionJobResult, MotionParams, collision_scene
 from app.jobs.path_kinds import PathParams, PathResult, SceneIn
 from app.jobs.tracking_kinds import TrackingParams, TrackingResult
+from kinematics.errors import FieldError
 from kinematics.fk import fk
 from kinematics.model import RobotModel
+from planning.motion import PRISMATIC_SCALE
+
+from .site import object_bounds_mm
 
 __all__ = [
     "DRAWERS",
@@ -53,11 +68,15 @@ __all__ = [
     "Spheres",
     "Box",
     "Capsule",
+    "Site",
     "Plan",
     "DrawContext",
     "drawer",
     "drawable",
+    "picks_problems",
     "plan_from_result",
+    "plan_from_motion",
+    "MAX_TOOL_PATH_POINTS",
 ]
 
 #: Playback length (s) of a joint path that carries no times.
@@ -71,6 +90,12 @@ HOLE_COLOR = (250, 200, 30)
 DESIRED_COLOR = (30, 120, 230)
 ACTUAL_COLOR = (230, 80, 30)
 ARM_COLORS = {"left": (30, 120, 230), "middle": (20, 160, 60), "right": (200, 60, 160)}
+WAYPOINT_COLOR = (250, 200, 30)
+#: Most tool points of a drawn joint path (FK of its samples, or of its waypoints refined).
+MAX_TOOL_PATH_POINTS = 2000
+#: Joint step (rad; mm / ``PRISMATIC_SCALE`` for prismatic joints) between the tool points
+#: of a joint path drawn without a trajectory: its straight joint segments curve in space.
+TOOL_PATH_STEP = 0.02
 
 
 @dataclass(frozen=True)
@@ -141,6 +166,15 @@ class Capsule:
 
 
 @dataclass(frozen=True)
+class Site:
+    """Scene objects (``planning.collision.shapes.SceneObject``, posed, mm) drawn as a stored
+    scene is (``web.site``), under ``<plan root>/<name>/<object id>``."""
+
+    name: str
+    objects: tuple[Any, ...]
+
+
+@dataclass(frozen=True)
 class Plan:
     """What to draw for one job. ``robot``: robot or rig id to show with it (None: keep the
     current one); ``motions`` by arm (``""`` for a single robot, the arm name in a rig);
@@ -154,6 +188,7 @@ class Plan:
     spheres: tuple[Spheres, ...] = ()
     boxes: tuple[Box, ...] = ()
     capsules: tuple[Capsule, ...] = ()
+    sites: tuple[Site, ...] = ()
     motions: dict[str, Motion] = field(default_factory=dict)
     summary: str = ""
 
@@ -164,7 +199,8 @@ class Plan:
     @property
     def names(self) -> list[str]:
         """Every node name (relative) the plan draws."""
-        groups = (self.clouds, self.polylines, self.spheres, self.boxes, self.capsules)
+        groups = (self.clouds, self.polylines, self.spheres, self.boxes, self.capsules,
+                  self.sites)
         return [item.name for group in groups for item in group]
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -193,6 +229,11 @@ class Plan:
         for c in self.capsules:
             ends = np.array([c.a, c.b], dtype=float)
             add(ends.min(axis=0) - c.radius, ends.max(axis=0) + c.radius)
+        for site in self.sites:
+            for o in site.objects:
+                found = object_bounds_mm(o)
+                if found is not None:
+                    add(*found)
         if not lows:
             return None
         return np.min(lows, axis=0), np.max(highs, axis=0)
@@ -205,23 +246,30 @@ ModelLookup = Callable[[str], RobotModel]
 @dataclass(frozen=True)
 class DrawContext:
     """What a drawer may look up: the job id, robot models by id (``ValueError`` naming
-    ``params.robot`` if unknown) and rigs by id (``kinematics.rigs.Rig``)."""
+    ``params.robot`` if unknown) and rigs by id (``kinematics.rigs.Rig``); ``problem``: the
+    problem of a batch to draw (kinds registered with ``problems=True``; None: the drawer's
+    choice)."""
 
     job: str
     models: ModelLookup
     rigs: Mapping[str, Any]
+    problem: int | None = None
 
 
 Drawer = Callable[[Any, Any, DrawContext], "Plan"]
 
 #: The drawer of each drawable job kind.
 DRAWERS: dict[str, Drawer] = {}
+#: The kinds whose jobs may hold a batch of problems, one of which is drawn.
+_PROBLEM_KINDS: set[str] = set()
 
 
-def drawer(kind: str) -> Callable[[Drawer], Drawer]:
+def drawer(kind: str, *, problems: bool = False) -> Callable[[Drawer], Drawer]:
     """Register the decorated function as the drawer of job kind ``kind``: it gets the
     job's params and result as the kind's models and a ``DrawContext``, and returns the
-    ``Plan``. ValueError (at import) if ``kind`` is not a job kind or has a drawer already."""
+    ``Plan``. ``problems``: the kind's jobs may be batches, and the drawer draws the one
+    ``DrawContext.problem`` names. ValueError (at import) if ``kind`` is not a job kind or has
+    a drawer already."""
 
     def add(fn: Drawer) -> Drawer:
         if kind not in KINDS:
@@ -231,6 +279,8 @@ def drawer(kind: str) -> Callable[[Drawer], Drawer]:
             raise ValueError(f"job kind {kind!r} has a drawer already "
                              f"({DRAWERS[kind].__name__})")
         DRAWERS[kind] = fn
+        if problems:
+            _PROBLEM_KINDS.add(kind)
         return fn
 
     return add
@@ -239,6 +289,11 @@ def drawer(kind: str) -> Callable[[Drawer], Drawer]:
 def drawable(kind: str) -> bool:
     """Whether the viewer can draw jobs of ``kind``."""
     return kind in DRAWERS
+
+
+def picks_problems(kind: str) -> bool:
+    """Whether a job of ``kind`` may be drawn one problem of its batch at a time."""
+    return kind in _PROBLEM_KINDS
 
 
 # ---- checks the models cannot make --------------------------------------------------------
@@ -420,6 +475,196 @@ def _tracking(params: TrackingParams, result: TrackingResult, ctx: DrawContext) 
                 motions={"": motion}, summary="\n".join(lines))
 
 
+# ---- motion -----------------------------------------------------------------------------
+def _metric_weights(model: RobotModel) -> np.ndarray:
+    """The planner's joint-space metric per joint ``(dof,)``: 1 per rad, 1 per
+    ``PRISMATIC_SCALE`` mm."""
+    return np.array([1.0 if j.revolute else 1.0 / PRISMATIC_SCALE for j in model.joints])
+
+
+def _refined(path: np.ndarray, weights: np.ndarray, step: float = TOOL_PATH_STEP
+             ) -> np.ndarray:
+    """The joint path ``(K, dof)`` with states inserted along its straight segments, at most
+    ``step`` apart on every joint (weighted), within ``MAX_TOOL_PATH_POINTS`` or so."""
+    if len(path) < 2:
+        return path
+    span = (np.abs(np.diff(path, axis=0)) * weights).max(axis=1)  # (K-1,)
+    counts = np.maximum(1, np.ceil(span / step)).astype(int)
+    if counts.sum() >= MAX_TOOL_PATH_POINTS:
+        counts = np.maximum(1, counts * (MAX_TOOL_PATH_POINTS - 1) // counts.sum())
+    seg = np.repeat(np.arange(len(counts)), counts)
+    first = np.repeat(np.cumsum(counts) - counts, counts)
+    frac = (np.arange(counts.sum()) - first + 1) / np.repeat(counts, counts)
+    inner = path[seg] + (path[seg + 1] - path[seg]) * frac[:, None]
+    return np.vstack([path[:1], inner])
+
+
+def _constant_speed(path: np.ndarray, weights: np.ndarray) -> Motion:
+    """A motion along the waypoints ``(K, dof)`` at a constant joint speed (the planner's
+    metric) over ``DEFAULT_SECONDS``."""
+    steps = np.linalg.norm(np.diff(path, axis=0) * weights, axis=1)
+    s = np.concatenate([[0.0], np.cumsum(steps)])
+    if s[-1] <= 0.0:
+        return Motion(np.linspace(0.0, DEFAULT_SECONDS, len(path)), path)
+    return Motion(DEFAULT_SECONDS * s / s[-1], path)
+
+
+def _pick_problem(problems: list[Any], wanted: int | None) -> int:
+    """The index of the problem to draw: ``wanted``, else the first solved one (else 0)."""
+    n = len(problems)
+    if wanted is None:
+        return next((i for i, p in enumerate(problems) if p.status == "ok"), 0)
+    if not 0 <= wanted < n:
+        raise FieldError(("problem",), f"the job planned {n} problem(s), numbered 0 to "
+                         f"{n - 1}; got {wanted}")
+    return wanted
+
+
+def _motion_site(scene: Any) -> tuple[tuple[Site, ...], str]:
+    """The scene a motion job planned in (its params' ``scene``) as plan items, and its line
+    of the summary."""
+    if scene is None:
+        return (), "none (self-collision only)"
+    if isinstance(scene, str):  # a worker refuses these: only a job never submitted has one
+        return (), f"stored scene `{scene}`, not filled in (not drawn)"
+    try:
+        objects = collision_scene(scene).objects
+    except FieldError as exc:
+        where = ".".join(str(k) for k in exc.loc)
+        raise ValueError(f"params.{where}: {exc.message}") from None
+    text = f"{len(objects)} object(s)"
+    if isinstance(scene.get("id"), str):
+        text += f" of stored scene `{scene['id']}`, as it was when the job was submitted"
+    return ((Site("scene", tuple(objects)),) if objects else ()), text
+
+
+def _motion_plan(model: RobotModel, one: Any, key: str, *, job: str, head: str,
+                 start: Any = None, goal: Any = None, asked: str = "params",
+                 site: tuple[Site, ...] = (), notes: tuple[str, ...] = ()) -> Plan:
+    """The plan of one motion problem's outcome ``one`` (a ``MotionOut``: ``status``,
+    ``path``, ``trajectory``, ``goal``, ...; ``key`` names it in errors) for ``model``.
+    ``start (dof,)`` and ``goal`` (a ``GoalIn``) are the problem's (``asked`` names them),
+    when known: the arm waits at the start of an unsolved problem, and the goal ball marks
+    the goal asked for."""
+    weights = _metric_weights(model)
+    path = _joints(one.path, f"{key}.path", model) if one.path else np.zeros((0, model.dof))
+    trajectory = one.trajectory
+    if trajectory is not None and trajectory.q:
+        motion = _motion(trajectory.q, f"{key}.trajectory.q", model, trajectory.t,
+                         f"{key}.trajectory.t")
+        timing = f"{motion.duration:.2f} s along the time-optimal trajectory"
+        stride = max(1, -(-len(motion.q) // MAX_TOOL_PATH_POINTS))
+        samples = np.vstack([motion.q[:-1:stride], motion.q[-1:]])
+    elif len(path) >= 2:
+        motion = _constant_speed(path, weights)
+        timing = (f"{DEFAULT_SECONDS:g} s at a constant joint speed (the result has no "
+                  "trajectory)")
+        samples = _refined(path, weights)
+    else:
+        motion, samples, timing = None, np.zeros((0, model.dof)), ""
+    q_start = path[0] if len(path) else (
+        None if start is None else _joints([start], f"{asked}.start", model)[0])
+    if motion is None and q_start is not None:
+        motion = Motion(np.zeros(1), q_start[None, :])  # the arm waits at the start
+    q_goal = None
+    if one.goal is not None:
+        q_goal = _joints([one.goal], f"{key}.goal", model)[0]
+    elif goal is not None and goal.q is not None:
+        q_goal = _joints([goal.q], f"{asked}.goal.q", model)[0]
+    ends = []
+    if q_start is not None:
+        ends.append(("start", fk(model, q_start)[:3, 3], START_COLOR))
+    if q_goal is not None:
+        ends.append(("goal", fk(model, q_goal)[:3, 3], GOAL_COLOR))
+    elif goal is not None and goal.pose is not None:
+        ends.append(("goal", np.asarray(goal.pose, dtype=float)[:3, 3], GOAL_COLOR))
+    tool = fk(model, samples)[:, :3, 3] if len(samples) else np.zeros((0, 3))
+    marks = fk(model, path)[:, :3, 3] if len(path) else np.zeros((0, 3))
+    extent = np.vstack([tool, marks, *[[p] for _, p, _ in ends]])
+    size = max(0.01 * float(np.linalg.norm(np.ptp(extent, axis=0))), 5.0) \
+        if len(extent) else 5.0
+    polylines = (Polyline("tool_path", tool, PATH_COLOR),) if len(tool) > 1 else ()
+    spheres = [Spheres("waypoints", marks, np.full(len(marks), 0.6 * size), WAYPOINT_COLOR)] \
+        if len(marks) else []
+    spheres += [Spheres(name, _points([p]), np.array([size]), color)
+                for name, p, color in ends]
+    lines = [head]
+    lines += list(notes)
+    if one.status == "ok":
+        length = "?" if one.length is None else f"{one.length:.3f}"
+        lines.append(f"- path: {len(path)} waypoints, joint-space length {length}")
+        if timing:
+            lines.append(f"- arm: {timing}")
+        clearance = "?" if one.min_clearance is None else f"{one.min_clearance:.1f} mm"
+        took = "?" if one.planning_time_s is None else f"{one.planning_time_s:.3f} s"
+        lines.append(f"- planning: {took}, min clearance {clearance}")
+    else:
+        lines.append(f"- **{one.status.replace('_', ' ')}**: {one.message}")
+        if one.pairs:
+            lines.append("- colliding: " + ", ".join(f"`{a}`–`{b}`" for a, b in one.pairs))
+        if q_start is not None:
+            lines.append("- arm: at the start")
+    lines.append("- green: the tool's route, yellow: waypoints, blue: start, red: goal")
+    return Plan(job, "motion", robot=model.id, polylines=polylines, spheres=tuple(spheres),
+                sites=site, motions={"": motion} if motion is not None else {},
+                summary="\n".join(lines))
+
+
+def _check_joints(joints: list[str], model: RobotModel, key: str) -> None:
+    names = [j.name for j in model.joints]
+    if list(joints) != names:
+        raise ValueError(f"{key}: the result's joints {list(joints)} are not those of robot "
+                         f"'{model.id}' ({names}); was the robot replaced?")
+
+
+@drawer("motion", problems=True)
+def _motion_job(params: MotionParams, result: MotionJobResult, ctx: DrawContext) -> Plan:
+    model = ctx.models(params.robot)
+    _check_joints(result.joints, model, "result.joints")
+    notes = []
+    if result.problems is None:
+        if ctx.problem not in (None, 0):
+            raise FieldError(("problem",), f"job {ctx.job} planned one problem (number 0), "
+                             f"not a batch; got {ctx.problem}")
+        one, key, start, goal = result, "result", params.start, params.goal
+        asked_key = "params"
+    else:
+        asked = params.problems or []
+        if len(asked) != len(result.problems):
+            raise ValueError(f"result.problems: expected {len(asked)} results (one per "
+                             f"problem), got {len(result.problems)}")
+        index = _pick_problem(result.problems, ctx.problem)
+        one, key = result.problems[index], f"result.problems.{index}"
+        start, goal = asked[index].start, asked[index].goal
+        asked_key = f"params.problems.{index}"
+        notes.append(f"- problem {index} of 0..{len(asked) - 1} ({result.summary.solved} of "
+                     f"{len(asked)} solved; `\"problem\": k` in `POST /viewer/show` picks "
+                     "another)")
+    site, scene_text = _motion_site(params.scene)
+    notes.append(f"- scene: {scene_text}")
+    head = (f"**Motion** of `{model.id}` (job `{ctx.job}`, {one.planner}): "
+            f"**{one.status}**")
+    return _motion_plan(model, one, key, job=ctx.job, head=head, start=start, goal=goal,
+                        asked=asked_key, site=site, notes=tuple(notes))
+
+
+def plan_from_motion(answer: Any, *, models: ModelLookup) -> Plan:
+    """The ``Plan`` of an answer of ``POST /robots/{id}/motion`` (its JSON object as returned,
+    or ``app.api.schemas.MotionAnswerIn``): the robot moves along it as along a motion job's
+    result. The answer carries no scene (show the stored scene it was planned in alongside).
+    ValueError naming the key (``motion.path``) for an answer of another shape or robot;
+    ``motion.robot`` if unknown."""
+    typed = _parse(MotionAnswerIn, answer, "motion")
+    try:
+        model = models(typed.robot)
+    except KeyError:
+        raise ValueError(f"motion.robot: unknown robot {typed.robot!r}") from None
+    _check_joints(typed.joints, model, "motion.joints")
+    head = (f"**Motion** of `{model.id}` (answer of `POST /robots/{model.id}/motion`, "
+            f"{typed.planner}): **{typed.status}**")
+    return _motion_plan(model, typed, "motion", job="", head=head)
+
+
 def _parse(model: type[BaseModel], value: Any, where: str) -> Any:
     if isinstance(value, model):
         return value
@@ -432,18 +677,24 @@ def _parse(model: type[BaseModel], value: Any, where: str) -> Any:
 
 
 def plan_from_result(kind: str, params: Any, result: Any, *, job: str = "",
-                     models: ModelLookup, rigs: Mapping[str, Any] | None = None) -> Plan:
+                     models: ModelLookup, rigs: Mapping[str, Any] | None = None,
+                     problem: int | None = None) -> Plan:
     """The ``Plan`` of a succeeded job of ``kind`` with ``params`` and ``result`` (JSON
     objects, or the kind's models).
 
     ``models(id)`` resolves a robot id (``KeyError`` if unknown), ``rigs`` maps rig ids to
-    ``kinematics.rigs.Rig``. ValueError for a kind the viewer cannot draw, or params or a
-    result that do not match the kind's models (the message names the key).
+    ``kinematics.rigs.Rig``; ``problem`` picks the problem of a batch (``picks_problems``
+    kinds; default: the drawer's choice). ValueError for a kind the viewer cannot draw, or
+    params or a result that do not match the kind's models (the message names the key);
+    ``FieldError`` at ``("problem",)`` for a problem the job does not have.
     """
     draw = DRAWERS.get(kind)
     if draw is None:
         raise ValueError(f"the viewer cannot show jobs of kind '{kind}'; it shows "
                          f"{', '.join(DRAWERS)}")
+    if problem is not None and not picks_problems(kind):
+        raise FieldError(("problem",), f"jobs of kind '{kind}' plan no batch of problems; "
+                         "give no problem")
     spec = KINDS[kind]
     typed_params = _parse(spec.params, params, "params")
     typed_result = _parse(spec.result, result, "result")
@@ -454,4 +705,4 @@ def plan_from_result(kind: str, params: Any, result: Any, *, job: str = "",
         except KeyError:
             raise ValueError(f"params.robot: unknown robot {robot_id!r}") from None
 
-    return draw(typed_params, typed_result, DrawContext(job, lookup, rigs or {}))
+    return draw(typed_params, typed_result, DrawContext(job, lookup, rigs or {}, problem))

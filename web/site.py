@@ -116,9 +116,10 @@ def _add_object(scene: Any, name: str, o: Any, color: tuple[int, int, int]) -> A
 
 
 def draw_site(scene: Any, scene_id: str, objects: Sequence[Any],
-              color: tuple[int, int, int] = OBJECT_COLOR) -> SiteNodes:
-    """Draw ``objects`` (``SceneObject``s) under ``/scene/<scene_id>``."""
-    root = f"{SCENE_ROOT}/{scene_id}"
+              color: tuple[int, int, int] = OBJECT_COLOR, *, root: str | None = None
+              ) -> SiteNodes:
+    """Draw ``objects`` (``SceneObject``s) under ``root`` (default ``/scene/<scene_id>``)."""
+    root = f"{SCENE_ROOT}/{scene_id}" if root is None else root
     out = SiteNodes(scene_id, root)
     out.handles[root] = scene.add_frame(root, show_axes=False)
     taken: set[str] = set()

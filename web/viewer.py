@@ -16,7 +16,9 @@ What a browser gets (http://host:port):
   the API's synchronous cap; jobs are submitted to the same manager, with the same checks, as
   ``POST /jobs``);
 * finished jobs shown by ``POST /viewer/show {"job": id}`` (``web.results``), with a time
-  slider and play/pause when the plan moves arms;
+  slider and play/pause when the plan moves arms (a batch of motion problems: one at a time,
+  ``"problem": k``), and the answer of ``POST /robots/{id}/motion`` shown by
+  ``POST /viewer/show {"motion": answer}``;
 * robots imported from URDF drawn with their own meshes (``web.meshes``), and a "Collision
   model" checkbox showing the balls the collision checker uses, following the arm
   (``web.collision``);
@@ -62,7 +64,7 @@ from .collision import CollisionSpheres
 from .gate import Gate, lock_websockets_server, new_secret
 from .gui import MAX_GUI_SAMPLES, MIN_GUI_SAMPLES, NO_SCENE, ControlPanel
 from .meshes import ImportedRobotNodes, robot_nodes
-from .results import DRAWERS, Plan, drawable, plan_from_result
+from .results import DRAWERS, Plan, drawable, plan_from_motion, plan_from_result
 from .scene import (
     MM_TO_M,
     RobotDrawing,
@@ -710,10 +712,11 @@ class Viewer:
             if self._plan is not None:
                 self.gui.workspace.content = self._plan.summary
 
-    def show_job(self, job_id: str) -> dict:
-        """Draw a finished job's result. KeyError if the job is unknown, ``JobNotReady`` if it
-        has not succeeded, ValueError if its kind cannot be drawn or its result is not of the
-        documented shape."""
+    def show_job(self, job_id: str, problem: int | None = None) -> dict:
+        """Draw a finished job's result (``problem``: which of a batch's problems). KeyError
+        if the job is unknown, ``JobNotReady`` if it has not succeeded, ValueError if its kind
+        cannot be drawn or its result is not of the documented shape (``FieldError`` at
+        ``("problem",)`` for a problem it does not have)."""
         job = self.jobs.get(job_id)
         if not drawable(job.kind):
             raise ValueError(f"the viewer cannot show jobs of kind '{job.kind}'; it shows "
@@ -722,8 +725,14 @@ class Viewer:
             raise JobNotReady(job_id, job.status, job.error)
         result = json.loads(self.jobs.result(job_id))
         plan = plan_from_result(job.kind, job.params, result, job=job_id,
-                                models=self.registry.get, rigs=self.registry.rigs)
+                                models=self.registry.get, rigs=self.registry.rigs,
+                                problem=problem)
         return self.show_plan(plan)
+
+    def show_motion(self, answer: Any) -> dict:
+        """Draw an answer of ``POST /robots/{id}/motion`` (its JSON object): its robot moves
+        along it. ValueError naming the key for an answer of another shape or robot."""
+        return self.show_plan(plan_from_motion(answer, models=self.registry.get))
 
     def show_plan(self, plan: Plan) -> dict:
         """Draw ``plan`` (replacing any plan shown), switching to its robot if it names one."""
@@ -738,8 +747,12 @@ class Viewer:
                 self._clear_plan()
                 self._plan = plan
                 size = max(reach_m(a.model) for a in self._arms.values())
-                self._plan_handles = draw_plan(self.server.scene, f"{PLAN_ROOT}/{plan.kind}",
-                                               plan, size)
+                root = f"{PLAN_ROOT}/{plan.kind}"
+                self._plan_handles = draw_plan(self.server.scene, root, plan, size)
+                for site in plan.sites:  # after the root: removed with it
+                    self._plan_handles.update(draw_site(
+                        self.server.scene, site.name, site.objects,
+                        root=f"{root}/{site.name}").handles)
                 self.gui.plan.content = plan.summary
                 self.gui.set_playback(plan.duration)
                 self._time = 0.0

@@ -2,14 +2,21 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
+from kinematics.model import MAX_DOF, MAX_LENGTH_MM
 from kinematics.workspace import DEFAULT_SAMPLES, MAX_SAMPLES
+from planning.motion import MotionStatus
+from planning.motion.request import MAX_PROBLEMS
 
 from ..fields import (
+    MAX_DURATION_S,
+    MAX_NAME_LENGTH,
+    Coordinate,
     JointVector,
+    Name,
     Point3,
     StrictModel,
     bounded_list,
@@ -196,14 +203,59 @@ class WorkspaceResponse(BaseModel):
     projections: dict[str, Projection] | None = None
 
 
+#: Most waypoints, and most trajectory samples, of a motion answer the viewer takes.
+MAX_MOTION_SAMPLES = 10_000
+
+
+class MotionTrajectoryIn(BaseModel):
+    """A motion answer's trajectory: the samples the viewer plays (its rates are not read)."""
+
+    model_config = ConfigDict(extra="ignore", allow_inf_nan=False)
+
+    t: bounded_list(Annotated[float, Field(ge=0, le=MAX_DURATION_S)],  # type: ignore[valid-type]
+                    MAX_MOTION_SAMPLES, min_length=1) = Field(description="s")
+    q: bounded_list(JointVector, MAX_MOTION_SAMPLES, min_length=1) = Field(  # type: ignore[valid-type]
+        description="rad / mm per sample")
+
+
+class MotionAnswerIn(BaseModel):
+    """The answer of ``POST /robots/{id}/motion`` as it was returned. The viewer reads the
+    fields below, bounded as every request's numbers are; the answer's others (``stats``,
+    ``qd``, ...) are accepted and not read."""
+
+    model_config = ConfigDict(extra="ignore", allow_inf_nan=False)
+
+    robot: Name
+    joints: bounded_list(Name, MAX_DOF, min_length=1)  # type: ignore[valid-type]
+    status: Literal[tuple(s.value for s in MotionStatus)]  # type: ignore[valid-type]
+    message: str = Field("", max_length=10_000)
+    path: bounded_list(JointVector, MAX_MOTION_SAMPLES) = Field(  # type: ignore[valid-type]
+        default_factory=list, description="Waypoints, rad / mm per joint")
+    length: float | None = Field(None, ge=0, le=MAX_LENGTH_MM)
+    planning_time_s: float | None = Field(None, ge=0, le=MAX_DURATION_S)
+    min_clearance: Coordinate | None = None
+    goal: JointVector | None = None
+    pairs: bounded_list(  # type: ignore[valid-type]
+        Annotated[list[Name], Field(min_length=2, max_length=2)], 1_000) = Field(
+        default_factory=list)
+    planner: str = Field("", max_length=MAX_NAME_LENGTH)
+    trajectory: MotionTrajectoryIn | None = None
+
+
 class ViewerShowRequest(Body):
-    """What the viewer shows: a robot (at ``q``) or a finished job, and/or a stored scene
-    (``"scene": null`` clears the scene shown)."""
+    """What the viewer shows: a robot (at ``q``), a finished job or a motion answer, and/or a
+    stored scene (``"scene": null`` clears the scene shown)."""
 
     robot: str | None = Field(None, max_length=64, description="Robot id to show")
     q: JointVector | None = Field(None, description="Configuration; default mid-limits")
     job: str | None = Field(None, max_length=64,
                             description="A finished job whose result to show")
+    problem: int | None = Field(None, ge=0, lt=MAX_PROBLEMS,
+                                description="With a motion job of a batch of problems: the "
+                                "one to show (0-based); default the first solved one")
+    motion: MotionAnswerIn | None = Field(
+        None, description="An answer of POST /robots/{id}/motion, as returned: its robot "
+        "moves along it (give the stored scene it was planned in as scene)")
     scene: str | None = Field(None, max_length=64, pattern=r"^[A-Za-z0-9_-]{1,64}$",
                               description="A stored scene to show (replacing the one shown); "
                               "null clears it")

@@ -459,6 +459,9 @@ def _drawable_params(kind: str) -> dict:
         return {"holes": HOLES, "start": [9000, 0, -1000]}
     if kind == "multiarm":
         return {"holes": SIDES, "output_dt": 1.0}
+    if kind == "motion":  # drawn in detail by test_viewer_motion
+        return {"robot": "glt_palletizer", "start": [-1.0, 0.3, -0.3, 0.0, 0.5, 0.0],
+                "goal": {"q": [1.0, 0.3, -0.3, 0.0, 0.5, 0.0]}, "time_limit": 2.0}
     return {"robot": "hyper_redundant_9dof",
             "task": {"kind": "line", "length": 100.0, "duration": 5.0}}
 
@@ -485,7 +488,8 @@ def real_jobs() -> dict[str, tuple[dict, dict]]:
 def test_the_drawable_kinds_are_the_kinds_with_a_drawer():
     from app.jobs.catalog import KINDS
 
-    assert set(DRAWERS) == {"workspace", "path", "sequence", "multiarm", "tracking"}
+    assert set(DRAWERS) == {"workspace", "path", "sequence", "multiarm", "tracking",
+                            "motion"}
     assert set(DRAWERS) <= set(KINDS)
     assert drawable("path") and not drawable("echo")
     with pytest.raises(ValueError, match="'nope' is not a job kind"):

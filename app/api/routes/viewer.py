@@ -1,9 +1,11 @@
-"""Tell the 3D viewer what to show: a robot (or rig) in a configuration, or a finished job, and
-a stored scene."""
+"""Tell the 3D viewer what to show: a robot (or rig) in a configuration, a finished job or the
+answer of a motion request, and a stored scene."""
 
 from __future__ import annotations
 
 from fastapi import APIRouter, Request
+
+from kinematics.errors import FieldError
 
 from ..deps import RegistryDep
 from ..errors import conflict, http_error, invalid, unavailable
@@ -14,8 +16,9 @@ router = APIRouter(prefix="/viewer", tags=["viewer"])
 
 @router.post("/show")
 def viewer_show(request: Request, registry: RegistryDep, body: ViewerShowRequest) -> dict:
-    """Show a robot in a configuration or a finished job's result, and/or a stored scene
-    (``"scene": null`` clears it), in the 3D viewer."""
+    """Show a robot in a configuration, a finished job's result (``problem``: one of a
+    batch's) or a motion answer, and/or a stored scene (``"scene": null`` clears it), in the
+    3D viewer."""
     from web.viewer import JobNotReady
 
     viewer = request.app.state.viewer
@@ -24,8 +27,22 @@ def viewer_show(request: Request, registry: RegistryDep, body: ViewerShowRequest
     has_scene = "scene" in body.model_fields_set
     if body.job is not None and (body.robot is not None or body.q is not None):
         raise invalid(["job"], "give either a job, or a robot (and q), not both")
-    if body.job is None and body.robot is None and (body.q is not None or not has_scene):
-        raise invalid(["robot"], "name the robot (or rig) to show, a job, or a scene")
+    if body.motion is not None and (body.job is not None or body.robot is not None
+                                    or body.q is not None):
+        raise invalid(["motion"], "give a motion answer alone (and a scene), without a job, "
+                      "robot or q")
+    if body.problem is not None and body.job is None:
+        raise invalid(["problem"], "a problem is one of a motion job's batch: give the job")
+    if (body.job is None and body.robot is None and body.motion is None
+            and (body.q is not None or not has_scene)):
+        raise invalid(["robot"], "name the robot (or rig) to show, a job, a motion answer, "
+                      "or a scene")
+    if body.motion is not None:
+        try:
+            registry.get(body.motion.robot)
+        except KeyError:
+            raise http_error(404, ["body", "motion", "robot"], f"unknown robot "
+                             f"'{body.motion.robot}'", "not_found") from None
     if body.scene is not None:  # checked first: an unknown scene changes nothing
         scenes = getattr(request.app.state, "scenes", None)
         try:
@@ -51,14 +68,21 @@ def viewer_show(request: Request, registry: RegistryDep, body: ViewerShowRequest
     shown: dict = {}
     if body.job is not None:
         try:
-            shown = viewer.show_job(body.job)
+            shown = viewer.show_job(body.job, body.problem)
         except KeyError:
             raise http_error(404, ["body", "job"], f"unknown job '{body.job}'",
                              "not_found") from None
         except JobNotReady as exc:
             raise conflict(["job"], str(exc)) from None
+        except FieldError as exc:  # a problem the job does not have
+            raise invalid(list(exc.loc), exc.message) from None
         except ValueError as exc:
             raise invalid(["job"], str(exc)) from None
+    elif body.motion is not None:
+        try:
+            shown = viewer.show_motion(body.motion)
+        except ValueError as exc:  # joints of another robot, a path of the wrong width
+            raise invalid(["motion"], str(exc)) from None
     elif body.robot is not None:
         try:
             shown = viewer.select(body.robot, body.q)
