@@ -20,3 +20,12 @@ os.environ.setdefault("KINOPLAN_ALLOWED_HOSTS", "*")
 def paper_tables() -> dict:
     """Every number the seed papers print that a test can reproduce (angles in degrees)."""
     return json.loads((DATA / "paper_tables.json").read_text())
+
+
+@pytest.fixture(scope="session")
+def motion_kernels() -> None:
+    """The motion planner's compiled kernels loaded (compiled, on a machine whose cache is
+    cold) before a test gives a plan a short time limit."""
+    from planning.motion import warm_up
+
+    warm_up()

@@ -39,6 +39,8 @@ import math
 import numpy as np
 from numba import njit
 
+from kinematics._kernels import _move, _times
+
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
 
 #: Answers of ``check_state``.
@@ -70,27 +72,8 @@ def frames(C, prismatic, offset, body, X, q, T, F):
         if body[e] == 0:
             _mul_into(T, X[e], F[e])
     for i in range(n):
-        # T = T @ C[i] @ M_i(x_i)
-        for r in range(3):
-            x = T[r, 0]
-            y = T[r, 1]
-            z = T[r, 2]
-            p = T[r, 3]
-            for c in range(3):
-                T[r, c] = x * C[i, 0, c] + y * C[i, 1, c] + z * C[i, 2, c]
-            T[r, 3] = x * C[i, 0, 3] + y * C[i, 1, 3] + z * C[i, 2, 3] + p
-        xi = q[i] + offset[i]
-        if prismatic[i]:
-            for r in range(3):
-                T[r, 3] += xi * T[r, 2]
-        else:
-            co = math.cos(xi)
-            si = math.sin(xi)
-            for r in range(3):
-                a = T[r, 0]
-                b = T[r, 1]
-                T[r, 0] = co * a + si * b
-                T[r, 1] = co * b - si * a
+        _times(T, C, i)                       # T = T @ C[i] @ M_i(x_i)
+        _move(T, prismatic[i], q[i] + offset[i])
         for e in range(E):
             if body[e] == i + 1:
                 _mul_into(T, X[e], F[e])
@@ -150,24 +133,27 @@ def _grid_bound(p, grid, meta, box):
 
 
 @njit(**_JIT)
-def _ballset_within(p, reach, s, balls, cells, set_meta):
-    """Whether a ball of set ``s`` comes within ``reach`` of ``p`` (surface distance)."""
-    lo0 = set_meta[s, 0]
-    lo1 = set_meta[s, 1]
-    lo2 = set_meta[s, 2]
+def _cells_around(p, ext, s, set_meta):
+    """The cell ranges of ball set ``s`` within ``ext`` of ``p`` (each axis clipped to the
+    grid), its first cell and the strides."""
     h = set_meta[s, 3]
     sx = int(set_meta[s, 4])
     sy = int(set_meta[s, 5])
     sz = int(set_meta[s, 6])
-    first = int(set_meta[s, 7])
-    rmax = set_meta[s, 8]
-    ext = reach + rmax
-    i0 = max(int(math.floor((p[0] - ext - lo0) / h)), 0)
-    i1 = min(int(math.floor((p[0] + ext - lo0) / h)), sx - 1)
-    j0 = max(int(math.floor((p[1] - ext - lo1) / h)), 0)
-    j1 = min(int(math.floor((p[1] + ext - lo1) / h)), sy - 1)
-    k0 = max(int(math.floor((p[2] - ext - lo2) / h)), 0)
-    k1 = min(int(math.floor((p[2] + ext - lo2) / h)), sz - 1)
+    i0 = max(int(math.floor((p[0] - ext - set_meta[s, 0]) / h)), 0)
+    i1 = min(int(math.floor((p[0] + ext - set_meta[s, 0]) / h)), sx - 1)
+    j0 = max(int(math.floor((p[1] - ext - set_meta[s, 1]) / h)), 0)
+    j1 = min(int(math.floor((p[1] + ext - set_meta[s, 1]) / h)), sy - 1)
+    k0 = max(int(math.floor((p[2] - ext - set_meta[s, 2]) / h)), 0)
+    k1 = min(int(math.floor((p[2] + ext - set_meta[s, 2]) / h)), sz - 1)
+    return i0, i1, j0, j1, k0, k1, int(set_meta[s, 7]), sy, sz
+
+
+@njit(**_JIT)
+def _ballset_within(p, reach, s, balls, cells, set_meta):
+    """Whether a ball of set ``s`` comes within ``reach`` of ``p`` (surface distance)."""
+    i0, i1, j0, j1, k0, k1, first, sy, sz = _cells_around(p, reach + set_meta[s, 8], s,
+                                                          set_meta)
     for i in range(i0, i1 + 1):
         for j in range(j0, j1 + 1):
             for k in range(k0, k1 + 1):
@@ -515,22 +501,9 @@ def segment_first(C, prismatic, offset, body, X, ends, w, a, b, n, order, start,
 def _ballset_distance(p, reach, s, balls, cells, set_meta):
     """Signed distance from ``p`` to the balls of set ``s``, or ``reach`` when none comes
     within it (a lower bound then)."""
-    lo0 = set_meta[s, 0]
-    lo1 = set_meta[s, 1]
-    lo2 = set_meta[s, 2]
-    h = set_meta[s, 3]
-    sx = int(set_meta[s, 4])
-    sy = int(set_meta[s, 5])
-    sz = int(set_meta[s, 6])
-    first = int(set_meta[s, 7])
-    ext = reach + set_meta[s, 8]
+    i0, i1, j0, j1, k0, k1, first, sy, sz = _cells_around(p, reach + set_meta[s, 8], s,
+                                                          set_meta)
     best = reach
-    i0 = max(int(math.floor((p[0] - ext - lo0) / h)), 0)
-    i1 = min(int(math.floor((p[0] + ext - lo0) / h)), sx - 1)
-    j0 = max(int(math.floor((p[1] - ext - lo1) / h)), 0)
-    j1 = min(int(math.floor((p[1] + ext - lo1) / h)), sy - 1)
-    k0 = max(int(math.floor((p[2] - ext - lo2) / h)), 0)
-    k1 = min(int(math.floor((p[2] + ext - lo2) / h)), sz - 1)
     for i in range(i0, i1 + 1):
         for j in range(j0, j1 + 1):
             for k in range(k0, k1 + 1):

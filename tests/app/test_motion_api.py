@@ -20,6 +20,8 @@ from kinematics.urdf import to_urdf
 from planning.collision import CollisionScene, RobotCollisionModel, check, collides
 from planning.motion import MotionResult, MotionStatus
 
+pytestmark = pytest.mark.usefixtures("motion_kernels")
+
 ROBOT = "glt_palletizer"
 START = [-1.0, 0.3, -0.3, 0.0, 0.5, 0.0]
 GOAL = [1.0, 0.3, -0.3, 0.0, 0.5, 0.0]

@@ -26,6 +26,8 @@ from planning.motion.request import MAX_PROBLEMS
 
 from .conftest import wait_for
 
+pytestmark = pytest.mark.usefixtures("motion_kernels")
+
 ROBOT = "glt_palletizer"
 START = [-1.0, 0.3, -0.3, 0.0, 0.5, 0.0]
 GOAL = [1.0, 0.3, -0.3, 0.0, 0.5, 0.0]

@@ -25,6 +25,7 @@ from planning.motion.checker import bisection_order
 
 urdf_import = pytest.importorskip("kinematics.urdf_import")
 pytest.importorskip("fcl")
+pytestmark = pytest.mark.usefixtures("motion_kernels")
 
 BALL = 50.0
 

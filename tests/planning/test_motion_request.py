@@ -17,6 +17,8 @@ from planning.motion.request import (
     parse_motion_request,
 )
 
+pytestmark = pytest.mark.usefixtures("motion_kernels")
+
 MODEL = builtin_model("glt_palletizer")  # 6 revolute joints
 Q0 = [0.0] * 6
 Q1 = [0.5, 0.2, -0.2, 0.0, 0.4, 0.0]

@@ -38,6 +38,8 @@ from web.results import (
 from web.scene import MM_TO_M
 from web.viewer import Viewer
 
+pytestmark = pytest.mark.usefixtures("motion_kernels")
+
 ROBOT = "glt_palletizer"
 IMPORTED = "glt_meshed"
 START = [-1.0, 0.3, -0.3, 0.0, 0.5, 0.0]
