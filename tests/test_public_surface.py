@@ -277,7 +277,7 @@ def test_libraries_never_import_app_or_web(package):
 
 def test_the_graph_sees_imports_inside_functions():
     graph = import_graph()
-    assert "planning.paths.arm" in graph["app.jobs.path_kinds"]  # inside run_path
+    assert "planning.paths.compare" in graph["app.jobs.path_kinds"]  # inside run_path_compare
     assert "planning.optimisers.aca" in graph["planning.registry"]  # by importlib
     assert "planning.paths.encoding" in graph["planning.optimisers.aca"]
     assert "planning.optimisers.aca" in graph["planning.paths.planners"]

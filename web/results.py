@@ -377,9 +377,13 @@ def _scene_items(scene: SceneIn) -> tuple[list[Spheres], list[Box], list[Capsule
 def _path(params: PathParams, result: PathResult, ctx: DrawContext) -> Plan:
     path = _points(result.path)
     spheres, boxes, caps = _scene_items(params.scene)
-    ends = [("start", params.start, START_COLOR), ("goal", params.goal, GOAL_COLOR)]
-    extent = np.vstack([path, [params.start], [params.goal]])
-    size = 0.01 * float(np.linalg.norm(np.ptp(extent, axis=0))) + 1.0
+    # A robot path may give joint values (arm.q_start, arm.q_goal) instead of points.
+    ends = [(name, point if point is not None else (path[k] if len(path) else None), color)
+            for name, point, k, color in (("start", params.start, 0, START_COLOR),
+                                          ("goal", params.goal, -1, GOAL_COLOR))]
+    ends = [e for e in ends if e[1] is not None]
+    extent = np.vstack([path] + [np.reshape(e[1], (1, 3)) for e in ends])
+    size = 0.01 * float(np.linalg.norm(np.ptp(extent, axis=0))) + 1.0 if len(extent) else 1.0
     for name, point, color in ends:
         spheres.append(Spheres(name, _points([point]), np.array([size]),
                                color))
@@ -391,7 +395,8 @@ def _path(params: PathParams, result: PathResult, ctx: DrawContext) -> Plan:
                                   result.trajectory.t, "result.trajectory.t")
         elif result.joint_path:
             motions[""] = _motion(result.joint_path, "result.joint_path", model)
-    lines = [f"**Path** (job `{ctx.job}`, {params.algorithm}): {len(path)} points",
+    planner = f", {result.planner.replace('_', ' ')}" if result.planner else ""
+    lines = [f"**Path** (job `{ctx.job}`, {params.algorithm}{planner}): {len(path)} points",
              f"- length: {_fmt(result.length)}",
              f"- min clearance: {_fmt(result.min_clearance)}",
              f"- runtime: {result.runtime_s:.2f} s"]

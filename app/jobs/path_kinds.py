@@ -7,7 +7,16 @@ and signs per field, and ``start``/``goal`` are checked against the scene (insid
 obstacle, outside the bounds) by field validators that reuse ``planning.paths.scene``'s messages.
 
 ``robot`` is optional, so the kind is registered with ``needs_robot=False``; when the service
-attaches the robot's model it is used, else a built-in robot is looked up by id.
+attaches the robot's model it is used, else a built-in robot is looked up by id. A robot's
+move is planned by ``planning.paths.arm_motion.plan_arm_motion``: the tool path when the arm
+can follow it, else (or with ``arm.joint_space: "always"``, or a goal configuration
+``arm.q_goal``) a joint-space motion in the same obstacles; ``planner`` in the result says
+which. ``start`` and ``goal`` may be left out when ``arm.q_start`` / ``arm.q_goal`` give the
+configurations.
+
+A stored scene (``scene.id``) becomes conservative obstacles for the tool path (bounding
+boxes of meshes, boxes over point clouds) and, up to ``MAX_SCENE_OBJECTS_BYTES`` of JSON, its
+own objects (``scene.objects``, stored meshes inline) for the joint-space planner.
 
 The scene is built once per process: ``SceneIn.to_scene()`` keeps what it built, so the
 checks of ``start`` and ``goal`` and the run (in the worker, on the params rebuilt there)
@@ -26,15 +35,19 @@ import numpy as np
 from pydantic import (
     Field,
     PrivateAttr,
+    ValidationError,
     ValidationInfo,
     WithJsonSchema,
     field_validator,
     model_validator,
 )
+from pydantic_core import PydanticCustomError
 
+from planning.motion import PLANNERS as MOTION_PLANNERS
+from planning.paths.arm_motion import DEFAULT_JOINT_TIME_LIMIT, JOINT_SPACE_MODES
 from planning.registry import algorithm_names
 
-from ..fields import MAX_COORDINATE_MM, StrictModel
+from ..fields import MAX_COORDINATE_MM, JointVector, StrictModel
 from ..fields import Point3 as Vec3
 from .kinds import (
     MAX_SEED,
@@ -62,6 +75,11 @@ MAX_SIZE_MM = MAX_COORDINATE_MM
 MAX_TRAJECTORY_SAMPLES = 100_000
 #: Largest link radius (mm) of the whole-arm check.
 MAX_LINK_RADIUS_MM = 10_000.0
+#: Longest search of the joint-space planner (s) of one arm path.
+MAX_JOINT_TIME_LIMIT_S = 600.0
+#: Most JSON bytes of a stored scene's objects recorded in a path job for the joint-space
+#: planner (beyond it, that planner avoids the conservative obstacles too).
+MAX_SCENE_OBJECTS_BYTES = 4 * 1024 * 1024
 
 #: The JSON schema of ``path``'s free-form ``params``: one of the planners' bounded models.
 PLANNER_PARAMS_SCHEMA = knobs_schema(
@@ -112,8 +130,13 @@ class SceneIn(StrictModel):
                                description="[[xmin, ymin, zmin], [xmax, ymax, zmax]] mm")
     obstacles: list[ObstacleIn] = Field(default_factory=list, max_length=MAX_OBSTACLES)
     safety_margin: float = Field(0.0, ge=0, le=MAX_SIZE_MM, description="mm")
+    objects: list[dict[str, Any]] | None = Field(
+        None, max_length=MAX_OBSTACLES, description="The stored scene's own objects "
+        "(planning.collision's format, meshes inline), filled in from id at submission: "
+        "what a robot's joint-space motion avoids (the obstacles cover them, never smaller)")
 
     _scene: Any = PrivateAttr(None)
+    _objects: Any = PrivateAttr(None)
 
     @field_validator("bounds")
     @classmethod
@@ -121,6 +144,13 @@ class SceneIn(StrictModel):
         if any(hi <= lo for lo, hi in zip(v[0], v[1])):
             raise ValueError("bounds[1] must exceed bounds[0] on every axis")
         return v
+
+    @model_validator(mode="after")
+    def _objects_of_a_stored_scene(self) -> SceneIn:
+        # Filled in from a stored scene, which was validated when it was stored.
+        if self.objects is not None and self.id is None:
+            raise ValueError("objects: only a stored scene's (with its id) are recorded")
+        return self
 
     def to_scene(self):
         """The ``planning.paths.scene.Scene`` (built on the first call, then kept); ValueError
@@ -131,6 +161,17 @@ class SceneIn(StrictModel):
             self._scene = Scene.create(self.bounds, [o.to_plain() for o in self.obstacles],
                                        self.safety_margin)
         return self._scene
+
+    def collision_scene(self):
+        """The stored scene's objects as a ``planning.collision.CollisionScene`` (built once),
+        None without them; ``FieldError`` at ``("objects", i, ...)``."""
+        if self.objects is None:
+            return None
+        if self._objects is None:
+            from planning.collision import CollisionScene
+
+            self._objects = CollisionScene.from_dicts(self.objects)
+        return self._objects
 
 
 class ArmOptions(StrictModel):
@@ -160,6 +201,21 @@ class ArmOptions(StrictModel):
         "5 rad/s³, 2500 mm/s³)")
     clearance_slack: float = Field(5.0, ge=0, le=1e4, description="mm")
     keep_out_radius: float | None = Field(None, gt=0, le=MAX_SIZE_MM, description="mm")
+    q_start: JointVector | None = Field(
+        None, description="Joint values to start from (rad / mm; default: position IK of "
+        "start); start may then be left out")
+    q_goal: JointVector | None = Field(
+        None, description="Joint values to end at (rad / mm): the move is then planned in "
+        "joint space; goal may be left out")
+    joint_space: Literal[JOINT_SPACE_MODES] = Field(  # type: ignore[valid-type]
+        "fallback", description="'fallback': plan the tool path, and a joint-space motion "
+        "in the same obstacles when the arm cannot follow it (out of reach, no IK, a link "
+        "in collision); 'always': the joint-space motion only; 'never': the tool path only")
+    joint_time_limit: float = Field(
+        DEFAULT_JOINT_TIME_LIMIT, gt=0, le=MAX_JOINT_TIME_LIMIT_S,
+        description="s of joint-space search (over the goal configurations tried)")
+    joint_planner: Literal[MOTION_PLANNERS] = Field(  # type: ignore[valid-type]
+        "auto", description="The joint-space planner (planning.motion)")
     dt: float | None = Field(None, ge=1e-3, le=1e3, description="s between trajectory "
                              f"samples (at most {MAX_TRAJECTORY_SAMPLES:,} samples)")
 
@@ -231,11 +287,31 @@ def path_obstacles(objects: Any) -> list[dict[str, Any]]:
     return out
 
 
+def scene_objects(objects: Any) -> list[dict[str, Any]] | None:
+    """A stored scene's objects in the API format with stored meshes inline (a worker has no
+    store), or None when their JSON would exceed ``MAX_SCENE_OBJECTS_BYTES``."""
+    import json
+
+    out = []
+    for o in objects:
+        d = o.to_dict()
+        if o.type == "mesh" and "mesh" in d:
+            del d["mesh"]
+            d.update(vertices=o.vertices.tolist(), faces=o.faces.tolist())
+        out.append(d)
+    size = len(json.dumps(out, separators=(",", ":")).encode())
+    return out if size <= MAX_SCENE_OBJECTS_BYTES else None
+
+
 def scene_params(stored: Any, given: dict[str, Any], endpoints: list) -> dict[str, Any]:
-    """A path job's inline ``scene`` from a stored scene: its obstacles (``path_obstacles``)
-    and, unless ``given`` has them, bounds around the obstacles and the endpoints."""
+    """A path job's inline ``scene`` from a stored scene: its obstacles (``path_obstacles``),
+    its own objects for a robot's joint-space motion (``scene_objects``) and, unless
+    ``given`` has them, bounds around the obstacles and the endpoints."""
     obstacles = path_obstacles(stored.objects)
-    out = {**given, "obstacles": obstacles}
+    out = {**{k: v for k, v in given.items() if k != "objects"}, "obstacles": obstacles}
+    objects = scene_objects(stored.objects)
+    if objects is not None:
+        out["objects"] = objects
     if "bounds" not in given:
         pts = [np.asarray(e, dtype=float).reshape(1, 3) for e in endpoints
                if isinstance(e, list) and len(e) == 3
@@ -257,8 +333,8 @@ def scene_params(stored: Any, given: dict[str, Any], endpoints: list) -> dict[st
 
 def _endpoint(v, info: ValidationInfo):
     scene = info.data.get("scene")
-    if scene is None:  # the scene itself failed; its error is reported
-        return v
+    if scene is None or v is None:  # the scene itself failed (its error is reported), or
+        return v                      # a robot path gives the configuration instead
     scene.to_scene().check_endpoint(v, info.field_name)
     return v
 
@@ -287,6 +363,8 @@ class _SceneTask(Params):
 
 
 class PathParams(_SceneTask):
+    start: Vec3 | None = Field(None, description="mm; may be left out with arm.q_start")
+    goal: Vec3 | None = Field(None, description="mm; may be left out with arm.q_goal")
     algorithm: Algorithm = "auto"
     params: Annotated[dict[str, Any] | None, WithJsonSchema(PLANNER_PARAMS_SCHEMA)] = None
     robot: str | None = Field(None, max_length=200,
@@ -303,6 +381,25 @@ class PathParams(_SceneTask):
     def _memory(self) -> PathParams:
         _batch_memory(self.scene, {self.algorithm: self.params})
         return self
+
+    @model_validator(mode="after")
+    def _endpoints(self) -> PathParams:
+        for name in ("start", "goal"):
+            if getattr(self, name) is None and getattr(self.arm, f"q_{name}", None) is None:
+                raise _field_error(name, "missing", f"{name} is required (a robot path may "
+                                   f"give arm.q_{name} instead)")
+        if (self.arm is not None and (self.arm.q_start or self.arm.q_goal)
+                and not self.robot):
+            raise _field_error("robot", "missing", "arm.q_start and arm.q_goal need a robot")
+        if not self.robot and self.scene.objects is not None:
+            self.scene.objects = None  # only a robot's joint-space motion uses them
+        return self
+
+
+def _field_error(loc: str, kind: str, message: str) -> ValidationError:
+    """An error of a check across fields, at the field it names (not at the model)."""
+    return ValidationError.from_exception_data("PathParams", [
+        {"type": PydanticCustomError(kind, message), "loc": (loc,), "input": None}])
 
 
 class PathTrajectory(Result):
@@ -344,6 +441,10 @@ class PathResult(Result):
     cylinders: PathCylinders | None = Field(description="Robot paths of robots with "
                                             "cylinders; null otherwise")
     robot: str | None = absent_when_none("Robot paths only")
+    planner: Literal["tool_space", "joint_space"] | None = absent_when_none(
+        "Robot paths only: what produced the motion, 'tool_space' (the tool path, followed "
+        "by IK) or 'joint_space' (planning.motion; the tool path is the tool's route along "
+        "it)")
     arm_min_clearance: float | None = absent_when_none(
         "Least clearance of the whole arm, mm (robot paths only)")
     tool_samples: list[XYZ] | None = absent_when_none(
@@ -354,7 +455,7 @@ def run_path(params: PathParams, progress: Progress) -> PathResult:
     """Plan one path; with ``robot``, for that robot's tool (reach, whole-arm clearance,
     joint trajectory, cylinder lengths)."""
     from planning.paths import plan_path
-    from planning.paths.arm import plan_arm_path
+    from planning.paths.arm_motion import plan_arm_motion
 
     scene = params.scene.to_scene()
 
@@ -363,9 +464,10 @@ def run_path(params: PathParams, progress: Progress) -> PathResult:
 
     if params.robot:
         arm = params.arm or ArmOptions()
-        res = plan_arm_path(params.robot_model(), scene, params.start, params.goal,
-                            params.algorithm, params.seed, params.params, report,
-                            **arm.model_dump(exclude={"dt"}))
+        res = plan_arm_motion(params.robot_model(), scene, params.start, params.goal,
+                              params.algorithm, params.seed, params.params, report,
+                              objects=params.scene.collision_scene(),
+                              **arm.model_dump(exclude={"dt"}))
         out = PathResult(**pick(PathResult, res.to_dict(arm.dt) | {"robot": params.robot}))
     else:
         res = plan_path(scene, params.start, params.goal, params.algorithm, params.seed,
@@ -403,6 +505,7 @@ class PathCompareParams(_SceneTask):
     @model_validator(mode="after")
     def _memory(self) -> PathCompareParams:
         _batch_memory(self.scene, {a: (self.params or {}).get(a) for a in self.algorithms})
+        self.scene.objects = None  # a robot's joint-space motion would use them; no robot
         return self
 
 

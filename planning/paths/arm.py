@@ -82,7 +82,8 @@ class ArmPathResult:
     failure; ``unreachable`` (an endpoint or a sample of the path out of reach);
     ``collision`` (a link hits an obstacle, at a sample or along the joint trajectory);
     ``out_of_limits`` (the joint trajectory leaves the joint limits or a cylinder its
-    stroke)."""
+    stroke). ``planner``: what produced the motion, ``tool_space`` (this module: the tool
+    path, followed by IK) or ``joint_space`` (``planning.paths.arm_motion``)."""
 
     tool: PathResult
     points: np.ndarray
@@ -95,6 +96,7 @@ class ArmPathResult:
     status: PlanStatus
     message: str
     extra: dict = field(default_factory=dict)
+    planner: str = "tool_space"
 
     @property
     def success(self) -> bool:
@@ -105,6 +107,7 @@ class ArmPathResult:
         (sampled every ``dt`` s, default duration/200) and ``cylinders``."""
         out = self.tool.to_dict()
         out.update(success=self.success, status=self.status.value, message=self.message,
+                   planner=self.planner,
                    arm_min_clearance=finite_or_none(self.arm_min_clearance),
                    joint_path=self.q.tolist(), tool_samples=self.points.tolist())
         if self.trajectory is not None:
