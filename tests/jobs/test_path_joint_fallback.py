@@ -24,6 +24,8 @@ from planning.collision import CollisionScene, RobotCollisionModel, collides
 from planning.paths.arm import arm_clearance
 from planning.paths.scene import Scene
 
+pytestmark = pytest.mark.usefixtures("motion_kernels")
+
 OPEN = {"bounds": [[-5000, -5000, -5000], [5000, 5000, 5000]]}
 #: Joint step (rad) of the independent check: half the planner's default resolution.
 CHECK_STEP = 0.005

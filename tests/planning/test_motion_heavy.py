@@ -29,6 +29,8 @@ from planning.motion.sites import (
     tunnel_site,
 )
 
+pytestmark = pytest.mark.usefixtures("motion_kernels")
+
 
 @pytest.fixture(scope="module")
 def pile():
