@@ -6,7 +6,7 @@ configuration or a tool pose, checked against the robot's own geometry and a sce
 times and reports a ``MotionResult``.
 """
 
-from .checker import DEFAULT_RESOLUTION, PRISMATIC_SCALE, MotionChecker
+from .checker import DEFAULT_RESOLUTION, PRISMATIC_SCALE, PRISMATIC_STEP, MotionChecker
 from .planner import (
     MAX_RESOLUTION,
     MAX_TIME_LIMIT,
@@ -18,5 +18,5 @@ from .planner import (
 from .warm import start_warm_up, warm_up
 
 __all__ = ["MotionChecker", "MotionResult", "MotionStatus", "plan_motion", "PLANNERS",
-           "DEFAULT_RESOLUTION", "PRISMATIC_SCALE", "MAX_RESOLUTION", "MAX_TIME_LIMIT",
-           "warm_up", "start_warm_up"]
+           "DEFAULT_RESOLUTION", "PRISMATIC_SCALE", "PRISMATIC_STEP", "MAX_RESOLUTION",
+           "MAX_TIME_LIMIT", "warm_up", "start_warm_up"]

@@ -83,11 +83,11 @@ def _steps(a, b, wt, res):
 
 @njit(**_JIT)
 def _segment_free(R, S, a, b, wt, res, margin, q, work):
-    """Whether the states strictly between ``a`` and ``b`` (joint steps at most ``res``)
-    are free, taken in bisection order; ``work`` is the scratch tuple; counts in
-    ``work[-1][0]``."""
-    T, F, M, hits, Wr, Wg, Wl, done, all_o, near_r, near_g, count, mode = work
-    n = _steps(a, b, wt, res)
+    """Whether the states strictly between ``a`` and ``b`` (joint steps at most ``res``,
+    weighted by the step weights in ``work``) are free, taken in bisection order; ``work``
+    is the scratch tuple; counts in ``work[-2][0]``."""
+    T, F, M, hits, Wr, Wg, Wl, done, all_o, near_r, near_g, sw, count, mode = work
+    n = _steps(a, b, sw, res)
     s = 1
     while s * 2 < n:
         s *= 2
@@ -105,15 +105,15 @@ def _segment_free(R, S, a, b, wt, res, margin, q, work):
 
 
 @njit(**_JIT)
-def make_work(R, S):
-    """Scratch arrays for ``_segment_free``."""
+def make_work(R, S, sw):
+    """Scratch arrays for ``_segment_free``, with the joints' step weights ``sw``."""
     E = R[3].shape[0]
     L = R[7].shape[0]
     Wr, Wg, Wl, done, all_o, near_r, near_g = _scratch(L, R[9].shape[1], R[11].shape[2],
                                                        S[1].shape[0])
     return (np.empty((3, 4)), np.empty((E, 3, 4)), np.empty((L, 3, R[6])),
             np.empty((1, 3), dtype=np.int64), Wr, Wg, Wl, done, all_o, near_r, near_g,
-            np.zeros(1, dtype=np.int64), np.zeros(2, dtype=np.int64))
+            sw.copy(), np.zeros(1, dtype=np.int64), np.zeros(2, dtype=np.int64))
 
 
 # ---- trees ------------------------------------------------------------------------------------

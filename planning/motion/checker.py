@@ -10,8 +10,9 @@ flagged pairs) and the segment check resumes after it if it is free. A "free" an
 therefore certain, and a "collides" answer is the exact one.
 
 Joint steps: a segment is checked at states no farther apart than ``resolution`` rad on every
-revolute joint and ``resolution * PRISMATIC_SCALE`` mm on every prismatic one (1 mm at the
-default 0.01). The same scale turns prismatic millimetres into the planners' metric.
+revolute joint and ``resolution * PRISMATIC_STEP`` mm on every prismatic one (1 mm at the
+default 0.01). In the planners' metric a prismatic joint's ``PRISMATIC_SCALE`` mm count as
+one radian (1 m: as far as a point 1 m from a revolute axis moves).
 
 Without numba (``KINOPLAN_JIT=0``), or for a robot whose links the chain layout cannot carry
 (a link moved by a mimic joint), the checks run on ``planning.collision.collides`` instead:
@@ -27,10 +28,14 @@ import numpy as np
 
 from kinematics.errors import FieldError
 
-__all__ = ["MotionChecker", "PRISMATIC_SCALE", "DEFAULT_RESOLUTION", "bisection_order"]
+__all__ = ["MotionChecker", "PRISMATIC_SCALE", "PRISMATIC_STEP", "DEFAULT_RESOLUTION",
+           "bisection_order"]
 
-#: Millimetres of a prismatic joint that count as one radian (metric and joint steps).
-PRISMATIC_SCALE = 100.0
+#: Millimetres of a prismatic joint that count as one radian in the planners' metric.
+PRISMATIC_SCALE = 1000.0
+#: Largest step of a prismatic joint between checked states, in mm per radian of
+#: ``resolution`` (1 mm at the default 0.01).
+PRISMATIC_STEP = 100.0
 #: Default largest joint step between checked states of a segment (rad).
 DEFAULT_RESOLUTION = 0.01
 #: Most flagged pairs collected for the exact stage of one configuration.
@@ -96,6 +101,8 @@ class MotionChecker:
         self.prismatic = np.array([not j.revolute for j in rm.joints], dtype=bool)
         #: Metric weight of each joint (1 per rad; 1 / PRISMATIC_SCALE per mm).
         self.weights = np.where(self.prismatic, 1.0 / PRISMATIC_SCALE, 1.0)
+        #: Step weight of each joint (1 per rad; 1 / PRISMATIC_STEP per mm).
+        self.step_weights = np.where(self.prismatic, 1.0 / PRISMATIC_STEP, 1.0)
         self.self_collision = bool(self_collision)
         self.margin = float(margin)
         self.exact = bool(exact)
@@ -193,7 +200,7 @@ class MotionChecker:
 
     def steps(self, a: np.ndarray, b: np.ndarray, resolution: float) -> int:
         """Steps of the segment ``a``-``b`` so that no joint moves more than its step."""
-        d = float(np.max(np.abs(b - a) * self.weights)) if self.dof else 0.0
+        d = float(np.max(np.abs(b - a) * self.step_weights)) if self.dof else 0.0
         return max(1, int(math.ceil(d / resolution - 1e-12)))
 
     def _order(self, n: int) -> np.ndarray:

@@ -401,7 +401,8 @@ def _compiled(checker: MotionChecker):
 
     work = checker.__dict__.get("_work")
     if work is None:
-        work = _rrt.make_work(checker._robot, checker._scene)
+        work = _rrt.make_work(checker._robot, checker._scene,
+                              np.ascontiguousarray(checker.step_weights))
         checker._work = work
     return _rrt, work
 
