@@ -145,18 +145,25 @@ class _BallSet:
         self.tree = cKDTree(balls[:, :3])
         self.rmax = float(balls[:, 3].max())
 
-    def distance(self, P: np.ndarray) -> np.ndarray:
+    def distance(self, P: np.ndarray, cap: float = math.inf) -> np.ndarray:
         """Signed distance ``(K,)`` of points to the union of the balls: the nearest
-        centres, widened until no farther ball can be nearer."""
+        centres, widened until no farther ball can be nearer. With ``cap``, a distance
+        above it may be answered as ``cap`` (only centres within ``cap + rmax`` are looked
+        at: what the distance grid, capped itself, needs)."""
         n = len(self.balls)
         k = min(_KNN, n)
         out = np.empty(len(P))
         todo = np.arange(len(P))
+        bound = cap + self.rmax
         while len(todo):
-            d, i = self.tree.query(P[todo], k=k)
+            d, i = self.tree.query(P[todo], k=k, distance_upper_bound=bound)
             d, i = d.reshape(len(todo), k), i.reshape(len(todo), k)
-            best = (d - self.balls[i, 3]).min(axis=1)
-            sure = (k >= n) | (d[:, -1] - self.rmax >= best)
+            found = np.isfinite(d)
+            r = self.balls[np.where(found, i, 0), 3]
+            best = np.where(found, d - r, np.inf).min(axis=1)
+            best = np.minimum(best, cap)
+            last = np.where(found[:, -1], d[:, -1], bound)
+            sure = (k >= n) | ~found[:, -1] | (last - self.rmax >= best)
             out[todo[sure]] = best[sure]
             todo = todo[~sure]
             k = min(4 * k, n)
@@ -276,7 +283,7 @@ class CompiledScene:
                 return f(int(hit[0]))[:, 0]
         for j, s in self.sets:
             if j == i:
-                return s.distance(P)
+                return s.distance(P, cap=GRID_CAP)
         raise IndexError(i)
 
     def lower_bound(self, P: np.ndarray) -> np.ndarray:
