@@ -314,8 +314,12 @@ def shortcut_run(R, S, path, n, wt, fine, margin, attempts, patience, rng, work)
             t = 0.0 if seg <= 0 else (s1 - cum[j]) / seg
             b[d] = path[j, d] + (path[j + 1, d] - path[j, d]) * t
         old = (cum[i + 1] - s0) + (s1 - cum[j]) + (cum[j] - cum[i + 1])
-        if _dist(a, b, wt) >= old - 1e-9 or not _segment_free(R, S, a, b, wt, fine, margin,
-                                                               q, work):
+        # The new segment, and the pieces of the old ones it keeps: a piece of a free
+        # segment is checked at states of its own, which the whole one never checked.
+        if _dist(a, b, wt) >= old - 1e-9 \
+                or not _segment_free(R, S, a, b, wt, fine, margin, q, work) \
+                or not _segment_free(R, S, path[i], a, wt, fine, margin, q, work) \
+                or not _segment_free(R, S, b, path[j + 1], wt, fine, margin, q, work):
             fails += 1
             continue
         # path[:i+1], a, b, path[j+1:n]

@@ -36,6 +36,7 @@ from kinematics.errors import FieldError
 
 from .checker import DEFAULT_RESOLUTION, MotionChecker
 from .search import (
+    escape,
     path_length,
     rrt_connect,
     rrt_connect_compiled,
@@ -68,7 +69,7 @@ SPHERE_PHASE_MAX = 0.2
 EXACT_ZONE = 0.3
 #: Share of the time limit the compiled search on the sphere model alone may take before
 #: the one that settles flagged states exactly takes over.
-SPHERE_SHARE = 0.1
+SPHERE_SHARE = 0.6
 #: Shortcut attempts of the exact pass after the sphere pass.
 SHORTCUT_ATTEMPTS_EXACT = 40
 #: Corner blends tried for the trajectory: largest deviation from a corner (weighted rad).
@@ -331,6 +332,7 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
                       stats={**stats, "checks": checker.checks - checks0})
     stats["raw_waypoints"] = len(path)
     stats["raw_length"] = path_length(path)
+    raw = path
     t_simplify = time.perf_counter()
     if simplify and len(path) > 2:
         # Simplification gets its own budget: half the time limit, at least 0.2 s.
@@ -362,8 +364,13 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
                 path = shortcut(checker, better, rng,
                                 lambda: time.perf_counter() >= s_deadline + 1.0, resolution)
                 used = "rrt_connect+rrt_star"
-    simplify_time = time.perf_counter() - t_simplify
     checker.exact, checker.exact_zone = exact, None
+    if len(path) != stats["raw_waypoints"] and not checker.path_free(path, resolution):
+        # Never expected (every shortcut checks what it keeps); if it happens, the path as
+        # found (every edge checked at ``resolution``) is answered instead.
+        stats["simplified_path_rejected"] = True
+        path = raw
+    simplify_time = time.perf_counter() - t_simplify
     stats["checks"] = checker.checks - checks0
     stats["exact_checks"] = checker.exact_checks - exact0
     planning_time = time.perf_counter() - t0
@@ -382,22 +389,29 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
 def _compiled_search(checker: MotionChecker, q_start: np.ndarray, goals: np.ndarray,
                      rng: np.random.Generator, stop, resolution: float, time_limit: float,
                      exact: bool) -> tuple[np.ndarray | None, dict, str | None]:
-    """The compiled RRT-Connect: on the sphere model alone (a flagged state counts as a
-    collision; from the start to the goals the spheres clear, when they clear the start) for
-    up to ``SPHERE_SHARE`` of the time limit, which is fast where the way is wide; then, with
-    ``exact``, settling flagged states exactly for the rest. Answers the path, statistics
-    and the mode that found it (``"spheres"``, ``"exact"``)."""
-    sf = sphere_free(checker, np.vstack([q_start[None], goals]))
+    """The compiled RRT-Connect, first on the sphere model alone (a flagged state counts as a
+    collision), which is fast where the way is wide, for up to ``SPHERE_SHARE`` of the time
+    limit: a start or goal the spheres flag (a gripper about an object) is first left by a
+    short exactly checked path (``escape``) to one they clear. Then, with ``exact``, settling
+    flagged states exactly for the rest. Answers the path, statistics and the mode that
+    found it (``"spheres"``, ``"exact"``)."""
     stats: dict[str, Any] = {}
     checker.exact, checker.exact_zone = exact, None
-    if sf[0] and sf[1:].any():
-        s_deadline = time.perf_counter() + (SPHERE_SHARE if exact else 1.0) * time_limit
-        path, st = rrt_connect_compiled(
-            checker, q_start, goals[sf[1:]], rng,
-            lambda: stop() or time.perf_counter() >= s_deadline, resolution)
+    s_deadline = time.perf_counter() + (SPHERE_SHARE if exact else 1.0) * time_limit
+
+    def s_stop() -> bool:
+        return stop() or time.perf_counter() >= s_deadline
+
+    ends = _sphere_ends(checker, q_start, goals, rng, s_stop, resolution, exact)
+    if ends is not None:
+        head, tails = ends
+        path, st = rrt_connect_compiled(checker, head[-1], np.array([t[0] for t in tails]),
+                                        rng, s_stop, resolution)
         stats["spheres"] = st
         if path is not None:
-            return path, stats, "spheres"
+            tail = next(t for t in tails if np.array_equal(t[0], path[-1]))
+            stats["escaped"] = len(head) > 1 or len(tail) > 1
+            return np.concatenate([head[:-1], path, tail[1:]]), stats, "spheres"
     if not exact:
         return None, stats, None
     path, st = rrt_connect_compiled(checker, q_start, goals, rng, stop, resolution,
@@ -405,6 +419,32 @@ def _compiled_search(checker: MotionChecker, q_start: np.ndarray, goals: np.ndar
     stats["exact"] = st
     stats["nodes"] = st.get("nodes", 0) + stats.get("spheres", {}).get("nodes", 0)
     return path, stats, "exact"
+
+
+def _sphere_ends(checker: MotionChecker, q_start: np.ndarray, goals: np.ndarray,
+                 rng: np.random.Generator, stop, resolution: float, exact: bool,
+                 most_goals: int = 4) -> tuple[np.ndarray, list[np.ndarray]] | None:
+    """Where a search on the spheres alone can start and end: ``(head, tails)``, ``head`` a
+    path from the start to a configuration the spheres clear (the start alone when they
+    clear it) and ``tails`` paths from such configurations to goals (``escape``, on the
+    exact shapes, for up to ``most_goals`` goals the spheres flag); None when there is none
+    (without ``exact``, flagged ends are not left)."""
+    sf = sphere_free(checker, np.vstack([q_start[None], goals]))
+    if sf[0]:
+        head = q_start[None]
+    elif exact:
+        head = escape(checker, q_start, rng, stop, resolution)
+        if head is None:
+            return None
+    else:
+        return None
+    tails = [g[None] for g in goals[sf[1:]]]
+    if exact:
+        for g in goals[~sf[1:]][:most_goals]:
+            out = escape(checker, g, rng, stop, resolution)
+            if out is not None:
+                tails.append(out[::-1])
+    return (head, tails) if tails else None
 
 
 def _trajectory(checker: MotionChecker, path: np.ndarray, resolution: float, limits,

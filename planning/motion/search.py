@@ -238,7 +238,11 @@ def shortcut(checker: MotionChecker, path: np.ndarray, rng: np.random.Generator,
             continue
         old = (cum[i + 1] - s0) + (s1 - cum[j]) + (cum[j] - cum[i + 1])
         new = float(np.sqrt((((b - a) * w) ** 2).sum()))
-        if new >= old - 1e-9 or not checker.segment_free(a, b, resolution):
+        # The new segment, and the pieces of the old ones it keeps (checked at states of
+        # their own, which the whole segments never checked).
+        if new >= old - 1e-9 or not checker.segment_free(a, b, resolution) \
+                or not checker.segment_free(path[i], a, resolution) \
+                or not checker.segment_free(b, path[j + 1], resolution):
             fails += 1
             continue
         path = np.concatenate([path[:i + 1], a[None], b[None], path[j + 1:]])
@@ -517,3 +521,35 @@ def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.G
     checker.checks += int(count[0]) - c0
     return buf[:n].copy()
 
+
+
+#: How far (weighted rad) ``escape`` looks for a configuration the spheres clear, with how
+#: many extensions of which length.
+ESCAPE_RADIUS = 0.5
+ESCAPE_TRIES = 150
+ESCAPE_STEP = 0.1
+
+
+def escape(checker: MotionChecker, q: np.ndarray, rng: np.random.Generator, stop: Stop,
+           resolution: float) -> np.ndarray | None:
+    """A short path ``(K, dof)`` from ``q`` (free, but flagged by the spheres: a gripper
+    about an object) to a configuration the sphere model clears, every segment checked on
+    the exact shapes at ``resolution`` (``checker.exact`` must be on): a small random tree
+    grown from ``q`` by steps of ``ESCAPE_STEP`` towards samples within ``ESCAPE_RADIUS``.
+    None if ``ESCAPE_TRIES`` extensions find none."""
+    w = checker.weights
+    tree = Tree(q)
+    lo = np.maximum(checker.lower, q - ESCAPE_RADIUS / w)
+    hi = np.minimum(checker.upper, q + ESCAPE_RADIUS / w)
+    for _ in range(ESCAPE_TRIES):
+        if stop():
+            return None
+        x = _sample(rng, lo, hi)
+        i = tree.nearest(x, w)
+        new, _ = _steer(tree.X[i], x, w, ESCAPE_STEP)
+        if not checker.segment_free(tree.X[i], new, resolution, ends=True):
+            continue
+        k = tree.add(new, i, True)
+        if sphere_free(checker, new[None])[0]:
+            return np.array([tree.X[j] for j in tree.branch(k)][::-1])
+    return None
