@@ -251,7 +251,12 @@ class RobotRegistry(StoreMirror):
 
         keys = sorted({g.mesh for link in robot.links for g in link.collision
                        if g.kind == "mesh"})
-        out = {"description": b64(json.dumps(robot.to_dict()).encode()),
+        # The worker checks collisions: the visual geometry (and its meshes) stays here.
+        description = robot.to_dict()
+        for link in description["links"]:
+            link["visual"] = []
+        description["meshes"] = keys
+        out = {"description": b64(json.dumps(description).encode()),
                "collision": b64(entry[0].to_bytes())}
         for key in keys:
             out[f"mesh:{key}"] = b64(mesh_to_bytes(robot.meshes[key]))

@@ -258,7 +258,8 @@ def test_a_small_stored_mesh_is_filled_in(jobs_client):
 
 
 def _meshed_glt_zip() -> bytes:
-    """The GLT palletizer as URDF with a trimesh box mesh on its upper arm, zipped."""
+    """The GLT palletizer as URDF with a trimesh box as its upper arm's collision mesh and a
+    capsule as its visual mesh, zipped."""
     import io
     import zipfile
 
@@ -266,12 +267,15 @@ def _meshed_glt_zip() -> bytes:
     text = to_urdf(builtin_model(ROBOT)).replace(
         '<link name="link_2" />',
         '<link name="link_2"><collision><geometry><mesh filename="meshes/upper.stl"/>'
-        '</geometry></collision></link>')
+        '</geometry></collision><visual><geometry><mesh filename="meshes/look.stl"/>'
+        '</geometry></visual></link>')
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w") as z:
         z.writestr("glt/glt.urdf", text)
         z.writestr("glt/meshes/upper.stl",
                    trimesh.creation.box(extents=(0.6, 0.15, 0.15)).export(file_type="stl"))
+        z.writestr("glt/meshes/look.stl",      # visual only: stays with the service
+                   trimesh.creation.capsule(radius=0.07, height=0.5).export(file_type="stl"))
     return buf.getvalue()
 
 
