@@ -17,7 +17,10 @@ Reported: false "free" of the sphere stage (must be 0), the share of free config
 spheres alone flag (target <= 2 %), agreement after the exact stage, and times per
 configuration, ours vs the reference: one configuration at a time (``--single`` of them) and
 in a batch of ``--configs`` (ours: one call; reference: poses batched, then one FCL query per
-configuration). The machine has 2 cores shared by everyone: timings are noisy.
+configuration). Also the motion planner's compiled checker (``planning.motion.MotionChecker``,
+the one a planner calls): its answers against the reference and its times, on the spheres alone
+and with the exact stage, in a batch and one at a time. The machine has 2 cores shared by
+everyone: timings are noisy.
 
 Run: ``.venv/bin/python benchmarks/bench_collision.py [--configs 1000] [--seed 8675309]``
 (needs python-fcl, pyyaml and trimesh). Also prints each model's build time, its stored
@@ -44,6 +47,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_urdf_import import zip_folder  # noqa: E402
 
 from planning.collision import CollisionScene, RobotCollisionModel, check, collides
+from planning.motion import MotionChecker
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 ROBOTS = (("panda", "panda_arm"), ("ur5", "manipulator"))
@@ -165,6 +169,21 @@ def compare(name: str, robot, cm, Q: np.ndarray, single: int, scene=None, ref=No
     t = time.perf_counter()
     robot.link_poses(Q)
     t_poses = time.perf_counter() - t
+    # The motion planner's compiled checker (planning.motion.MotionChecker), same answers.
+    mc = MotionChecker(cm, scene)
+    mc.free(Q[:8])
+    mc.exact = False
+    t = time.perf_counter()
+    m_sph = mc.free(Q)
+    t_msph = time.perf_counter() - t
+    mc.exact = True
+    t = time.perf_counter()
+    m_exact = mc.free(Q)
+    t_mexact = time.perf_counter() - t
+    t = time.perf_counter()
+    for q in Q[:single]:
+        mc.free(q)
+    t_mexact1 = time.perf_counter() - t
 
     free = ~truth
     row = {
@@ -177,6 +196,10 @@ def compare(name: str, robot, cm, Q: np.ndarray, single: int, scene=None, ref=No
         "t_sph_single": t_sph1 / single, "t_exact_single": t_exact1 / single,
         "t_sph_batch": t_sph / len(Q), "t_exact_batch": t_exact / len(Q),
         "t_check_batch": t_check / len(Q), "t_poses_batch": t_poses / len(Q),
+        "motion_false_free": int(np.sum(truth & m_sph)) + int(np.sum(truth & m_exact)),
+        "motion_agree_exact": float(np.mean(m_exact == ~truth)),
+        "t_motion_spheres_batch": t_msph / len(Q), "t_motion_exact_batch": t_mexact / len(Q),
+        "t_motion_exact_single": t_mexact1 / single,
     }
     print(f"  {name}: reference collides in {row['colliding']:.1%}; spheres: false free "
           f"{row['false_free']} (must be 0), flag {row['flagged_free']:.2%} of the free "
@@ -188,6 +211,11 @@ def compare(name: str, robot, cm, Q: np.ndarray, single: int, scene=None, ref=No
           f"{per_config(t_sph, len(Q))}, ours exact {per_config(t_exact, len(Q))}, "
           f"check {per_config(t_check, len(Q))}, fcl {per_config(t_ref_batch, len(Q))} "
           f"(link_poses alone {per_config(t_poses, len(Q))})")
+    print(f"    motion planner's compiled checker: false free {row['motion_false_free']}, "
+          f"exact agrees {row['motion_agree_exact']:.2%}; batch of {len(Q)}: spheres "
+          f"{per_config(t_msph, len(Q))}, exact {per_config(t_mexact, len(Q))} "
+          f"(1,000 in {t_mexact / len(Q) * 1e6:.1f} ms); one at a time exact "
+          f"{per_config(t_mexact1, single)}")
     return row
 
 

@@ -10,16 +10,17 @@ blends checked for collision and tightened until free, sharp corners at worst); 
 least clearance. Every outcome other than bad input is a ``MotionStatus`` with a message
 naming why (the colliding pair, the joint out of limits).
 
-``rrt_connect`` (and ``auto``) first runs the compiled RRT-Connect on the sphere model alone
-(``search.rrt_connect_compiled``: a state the spheres flag counts as a collision, so its paths
-are free without the exact stage) for up to ``COMPILED_SHARE`` of the time limit, restarting
-with growing budgets; if that finds nothing (a passage narrower than the spheres' slack, or a
-start or goal only the exact stage clears), RRT-Connect in Python confirms flagged states
-exactly for the rest of the time (``search.rrt_connect``). The path is then shortened on the
-spheres (compiled) and, if it came from the exact search, on the exact shapes too.
-``auto`` with a time limit past ``AUTO_REFINE_AFTER`` s also hands the shortened path to RRT*
-as the bound to beat until ``AUTO_REFINE_SHARE`` of the time, then shortens the best path
-again. ``rrt_star`` searches with RRT* for the whole time limit.
+``rrt_connect`` (and ``auto``) runs the compiled RRT-Connect (``search.rrt_connect_compiled``,
+restarting with growing budgets): first on the sphere model alone (a state the spheres flag
+counts as a collision, so its paths are free without the exact stage) for up to
+``SPHERE_SHARE`` of the time limit, a start or goal the spheres flag being first left by a
+short path checked on the exact shapes (``search.escape``); if that finds nothing (a passage
+narrower than the spheres' slack), again settling every flagged state exactly for the rest
+of the time. Without compiled kernels RRT-Connect runs in Python (``search.rrt_connect``).
+The path is then shortened with the checker that found it (compiled), and checked once more
+before it is answered. ``auto`` with a time limit past ``AUTO_REFINE_AFTER`` s also hands the
+shortened path to RRT* as the bound to beat until ``AUTO_REFINE_SHARE`` of the time, then
+shortens the best path again. ``rrt_star`` searches with RRT* for the whole time limit.
 """
 
 from __future__ import annotations
