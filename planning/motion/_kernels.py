@@ -170,29 +170,11 @@ def _ballset_within(p, reach, s, balls, cells, set_meta):
 
 @njit(**_JIT)
 def _object_within(p, reach, o, kind, T_inv, par, balls, cells, set_meta):
-    """Whether the point ``p`` is within ``reach`` (>= 0) of object ``o``."""
-    k = kind[o]
-    if k == 4:
+    """Whether the point ``p`` is within ``reach`` (>= 0) of object ``o`` (a ball set
+    stops at the first ball near enough)."""
+    if kind[o] == 4:
         return _ballset_within(p, reach, int(par[o, 0]), balls, cells, set_meta)
-    x = T_inv[o, 0, 0] * p[0] + T_inv[o, 0, 1] * p[1] + T_inv[o, 0, 2] * p[2] + T_inv[o, 0, 3]
-    y = T_inv[o, 1, 0] * p[0] + T_inv[o, 1, 1] * p[1] + T_inv[o, 1, 2] * p[2] + T_inv[o, 1, 3]
-    z = T_inv[o, 2, 0] * p[0] + T_inv[o, 2, 1] * p[1] + T_inv[o, 2, 2] * p[2] + T_inv[o, 2, 3]
-    if k == 0:
-        qx = max(abs(x) - par[o, 0], 0.0)
-        qy = max(abs(y) - par[o, 1], 0.0)
-        qz = max(abs(z) - par[o, 2], 0.0)
-        return qx * qx + qy * qy + qz * qz <= reach * reach
-    if k == 1:
-        dr = max(math.sqrt(x * x + y * y) - par[o, 0], 0.0)
-        dz = max(abs(z) - par[o, 1], 0.0)
-        return dr * dr + dz * dz <= reach * reach
-    if k == 2:
-        lim = reach + par[o, 0]
-        return x * x + y * y + z * z <= lim * lim
-    # capsule along local z, centred
-    zz = min(max(z, -par[o, 1]), par[o, 1])
-    lim = reach + par[o, 0]
-    return x * x + y * y + (z - zz) * (z - zz) <= lim * lim
+    return _object_distance(p, reach, o, kind, T_inv, par, balls, cells, set_meta) <= reach
 
 
 @njit(**_JIT)
