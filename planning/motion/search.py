@@ -11,6 +11,10 @@
   sampling, IROS 2014). It runs until its time budget ends, keeping the best path found.
 * ``shortcut``: path simplification: random shortcuts between points anywhere along the
   path (not only waypoints), then the removal of waypoints whose neighbours see each other.
+* ``rrt_connect_compiled`` and ``shortcut_compiled``: the same, compiled
+  (``planning.motion._rrt``), on the sphere model alone or settling flagged states exactly;
+  ``escape``: a short exactly checked path from a start or goal the spheres flag to one they
+  clear, so that the search on the spheres alone can run between them.
 
 All work in the checker's weighted joint coordinates (prismatic millimetres scaled by
 ``PRISMATIC_SCALE``); every edge a search keeps is checked by ``MotionChecker.segment_free``
