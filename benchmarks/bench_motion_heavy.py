@@ -50,7 +50,7 @@ import numpy as np
 from kinematics.fk import fk
 from kinematics.library import builtin_model
 from planning.collision import RobotCollisionModel, collides
-from planning.motion import PRISMATIC_SCALE, MotionChecker, plan_motion
+from planning.motion import PRISMATIC_STEP, MotionChecker, plan_motion
 from planning.motion.sites import (
     jumbo_site,
     pallet_problems,
@@ -125,7 +125,7 @@ def verify(cm, scene, model, res, start, goal, step: float) -> tuple[bool, str]:
         return False, "ends differ from start/goal"
     if not np.all(model.within_limits(path)):
         return False, "out of limits"
-    w = np.where(model.revolute, 1.0, 1.0 / PRISMATIC_SCALE)
+    w = np.where(model.revolute, 1.0, 1.0 / PRISMATIC_STEP)
     states = [path[:1]]
     for a, b in zip(path[:-1], path[1:]):
         n = max(1, int(np.ceil(np.max(np.abs(b - a) * w) / step)))

@@ -289,17 +289,11 @@ def plan_motion(checker: MotionChecker, start, goal=None, *, goal_pose=None, mod
     goals = goals[free]
 
     exact = checker.exact
-    switch_at = time.perf_counter() + min(SPHERE_PHASE_SHARE * time_limit, SPHERE_PHASE_MAX)
-    if exact:
-        checker.exact = False
-        checker.exact_zone = (np.vstack([q_start[None], goals]), EXACT_ZONE)
 
     def stop() -> bool:
         now = time.perf_counter()
         if progress is not None:
             progress(min(1.0, (now - t0) / time_limit))
-        if exact and not checker.exact and now >= switch_at:
-            checker.exact = True
         return now >= deadline
 
     try:
@@ -310,6 +304,26 @@ def plan_motion(checker: MotionChecker, start, goal=None, *, goal_pose=None, mod
         checker.exact_zone = None
 
 
+def _sphere_phase(checker: MotionChecker, q_start: np.ndarray, goals: np.ndarray, stop,
+                  time_limit: float, exact: bool):
+    """For the Python searches: the checker on the spheres alone (the exact stage only
+    within ``EXACT_ZONE`` of the start and goals) for the first ``SPHERE_PHASE_SHARE`` of the
+    time limit (at most ``SPHERE_PHASE_MAX`` s), then exact again; answers the ``stop`` that
+    switches it back."""
+    if not exact:
+        return stop
+    switch_at = time.perf_counter() + min(SPHERE_PHASE_SHARE * time_limit, SPHERE_PHASE_MAX)
+    checker.exact = False
+    checker.exact_zone = (np.vstack([q_start[None], goals]), EXACT_ZONE)
+
+    def phased() -> bool:
+        if not checker.exact and time.perf_counter() >= switch_at:
+            checker.exact, checker.exact_zone = True, None
+        return stop()
+
+    return phased
+
+
 def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, time_limit, t0,
             exact, result, trajectory, limits, hydraulics) -> MotionResult:
     checks0, exact0 = checker.checks, checker.exact_checks
@@ -317,14 +331,19 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
     used = planner
     path, mode = None, None
     if planner == "rrt_star":
-        path, st = rrt_star(checker, q_start, goals, rng, stop, resolution)
+        path, st = rrt_star(checker, q_start, goals, rng,
+                            _sphere_phase(checker, q_start, goals, stop, time_limit, exact),
+                            resolution)
     elif checker._k is not None:
         used = "rrt_connect"
         path, st, mode = _compiled_search(checker, q_start, goals, rng, stop, resolution,
                                           time_limit, exact)
     else:
         used = "rrt_connect"
-        path, st = rrt_connect(checker, q_start, goals, rng, stop, resolution)
+        path, st = rrt_connect(checker, q_start, goals, rng,
+                               _sphere_phase(checker, q_start, goals, stop, time_limit, exact),
+                               resolution)
+    checker.exact, checker.exact_zone = exact, None
     stats.update(st)
     if path is None:
         return result(MotionStatus.TIMEOUT,
@@ -344,7 +363,6 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
 
         if mode is not None:
             # Compiled, with the checker the path was found with.
-            checker.exact, checker.exact_zone = exact, None
             path = shortcut_compiled(checker, path, rng, resolution, exact=mode == "exact")
         else:
             checker.exact = False
@@ -354,7 +372,6 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
                 path = shortcut(checker, path, rng, s_stop, resolution,
                                 attempts=SHORTCUT_ATTEMPTS_EXACT)
         if planner == "auto" and time_limit > AUTO_REFINE_AFTER:
-            checker.exact, checker.exact_zone = exact, None
             r_deadline = t0 + AUTO_REFINE_SHARE * time_limit
             better, st2 = rrt_star(checker, q_start, goals, rng,
                                    lambda: time.perf_counter() >= r_deadline, resolution,
@@ -397,7 +414,6 @@ def _compiled_search(checker: MotionChecker, q_start: np.ndarray, goals: np.ndar
     flagged states exactly for the rest. Answers the path, statistics and the mode that
     found it (``"spheres"``, ``"exact"``)."""
     stats: dict[str, Any] = {}
-    checker.exact, checker.exact_zone = exact, None
     s_deadline = time.perf_counter() + (SPHERE_SHARE if exact else 1.0) * time_limit
 
     def s_stop() -> bool:

@@ -45,7 +45,13 @@ from kinematics.fk import fk
 from kinematics.ik.position import REACH_TOL, position_dls, position_ik
 from kinematics.model import RobotModel
 from planning.collision import CollisionScene, RobotCollisionModel
-from planning.motion import DEFAULT_RESOLUTION, MotionChecker, MotionStatus, plan_motion
+from planning.motion import (
+    DEFAULT_RESOLUTION,
+    PRISMATIC_STEP,
+    MotionChecker,
+    MotionStatus,
+    plan_motion,
+)
 
 from ..budget import ProgressFn
 from ..status import PlanStatus
@@ -150,7 +156,7 @@ def point_configurations(model: RobotModel, point, seed: int = 0, q_ref=None,
     Q = Q[ok]
     if len(Q) == 0:
         return Q.reshape(0, model.dof)
-    w = np.where(model.revolute, 1.0, 0.01)
+    w = np.where(model.revolute, 1.0, 1.0 / PRISMATIC_STEP)
     ref = model.mid_configuration() if q_ref is None else np.asarray(q_ref, dtype=float)
     ref = np.where(np.isfinite(ref), ref, 0.0)
     Q = Q[np.argsort(np.linalg.norm((Q - ref) * w, axis=1), kind="stable")]
@@ -348,7 +354,7 @@ def joint_samples(model: RobotModel, path: np.ndarray, spacing: float,
     waypoint included, close enough that the tool point moves at most ``spacing`` mm and no
     joint more than ``joint_step`` (rad; x 100 mm for prismatic joints) between neighbours;
     and their tool points ``(S, 3)`` mm."""
-    w = np.where(model.revolute, 1.0, 0.01)
+    w = np.where(model.revolute, 1.0, 1.0 / PRISMATIC_STEP)
     Qs, Ps = [path[:1]], [fk(model, path[:1])[:, :3, 3]]
     for a, b in zip(path[:-1], path[1:]):
         n = max(1, math.ceil(float(np.max(np.abs(b - a) * w)) / joint_step))

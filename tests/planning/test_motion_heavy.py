@@ -17,7 +17,7 @@ from kinematics.fk import fk
 from kinematics.library import builtin_model
 from planning.collision import CollisionScene, RobotCollisionModel, collides
 from planning.drilling.patterns import FacePattern, face_pattern
-from planning.motion import DEFAULT_RESOLUTION, PRISMATIC_SCALE, MotionChecker, plan_motion
+from planning.motion import DEFAULT_RESOLUTION, PRISMATIC_STEP, MotionChecker, plan_motion
 from planning.motion.sites import (
     arm_capsules,
     jumbo_site,
@@ -66,7 +66,7 @@ def _tool_points(model, n: int = 5000, seed: int = 99) -> np.ndarray:
 
 
 def _dense(model, path: np.ndarray, step: float) -> np.ndarray:
-    w = np.where(model.revolute, 1.0, 1.0 / PRISMATIC_SCALE)
+    w = np.where(model.revolute, 1.0, 1.0 / PRISMATIC_STEP)
     out = [path[:1]]
     for a, b in zip(path[:-1], path[1:]):
         n = max(1, int(np.ceil(np.max(np.abs(b - a) * w) / step)))
