@@ -29,7 +29,13 @@ class Settings(BaseSettings):
         Path("./data"), description="directory of the SQLite store of custom robots and jobs")
     workers: int = Field(default_factory=lambda: os.cpu_count() or 1, ge=1,
                          description="job worker processes (one per core unless set)")
-    jobs_backend: str = Field("local", description="'local' or 'dask://HOST:PORT'")
+    jobs_backend: str = Field(
+        "local", description="'local', or a Dask scheduler: 'dask://HOST:PORT' ('tcp://' the "
+        "same; 'tls://HOST:PORT' with Dask's TLS settings, DASK_DISTRIBUTED__COMM__TLS__*)")
+    cluster_deadline_s: float = Field(
+        600.0, gt=0, le=7 * 86_400,
+        description="seconds the Dask backend waits for a lost (or never reached) scheduler "
+        "before the jobs running or queued fail, naming it; submissions answer 503 meanwhile")
     api_key: str | None = Field(
         None, repr=False,
         description="key every request that changes state must bear (Authorization: Bearer); "

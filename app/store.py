@@ -684,6 +684,13 @@ class Store:
                 "message = 'started', progress = 0 WHERE id = ?", (now_iso(), row[0]))
         return self.get_job(row[0])
 
+    def count_attempt(self, job_id: str, message: str) -> None:
+        """A running job (or a part of it) was started again: one more attempt."""
+        with self._connect() as conn:
+            conn.execute(
+                "UPDATE jobs SET attempts = attempts + 1, message = ? "
+                "WHERE id = ? AND status = 'running'", (message, job_id))
+
     def set_progress(self, job_id: str, progress: float, message: str) -> None:
         with self._connect() as conn:
             conn.execute(
@@ -721,7 +728,8 @@ class Store:
             failed = conn.execute(
                 "UPDATE jobs SET status = 'failed', finished = ?, error = ?, message = ? "
                 "WHERE status = 'running' AND attempts >= ?",
-                (now_iso(), f"interrupted by {max_attempts} service restarts",
+                (now_iso(), f"started {max_attempts} times without finishing (service restarts, "
+                 "lost workers)",
                  "interrupted", max_attempts)).rowcount
             requeued = conn.execute(
                 "UPDATE jobs SET status = 'queued', progress = 0, started = NULL, "

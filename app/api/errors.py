@@ -14,9 +14,11 @@ __all__ = [
     "http_error","invalid", "too_large", "not_found", "forbidden", "conflict", "unavailable"]
 
 
-def http_error(status: int, loc: Sequence[str | int], msg: str, kind: str) -> HTTPException:
+def http_error(status: int, loc: Sequence[str | int], msg: str, kind: str,
+               headers: dict[str, str] | None = None) -> HTTPException:
     """Any 4xx/5xx in the service's shape; ``loc`` is the full location."""
-    return HTTPException(status, detail=[{"loc": list(loc), "msg": msg, "type": kind}])
+    return HTTPException(status, detail=[{"loc": list(loc), "msg": msg, "type": kind}],
+                         headers=headers)
 
 
 _error = http_error

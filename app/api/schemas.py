@@ -75,6 +75,9 @@ class JobsHealth(BaseModel):
     ok: bool = Field(description="The job backend works (or has not been started yet)")
     running: bool = Field(description="Its supervisor runs (false until the service starts it)")
     error: str | None = Field(None, description="What is wrong, when something is")
+    workers: int | None = Field(None, description="Job steps run at once: the local backend's "
+                                "processes, or the Dask cluster's worker threads (0 while "
+                                "none is connected)")
 
 
 class Health(BaseModel):

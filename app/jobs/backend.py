@@ -63,6 +63,10 @@ class SupervisedBackend:
             self._cancel.add(job_id)
         self._wake.set()
 
+    def parallelism(self) -> int:
+        """Job steps run at once."""
+        return self.workers
+
     def alive(self) -> bool:
         return self._thread is not None and self._thread.is_alive()
 

@@ -1,14 +1,23 @@
-"""Scale-out: run the same job functions on a Dask distributed cluster.
+"""Scale-out: run jobs on a Dask distributed cluster, spread over all its workers.
 
-``--jobs-backend dask://HOST:PORT`` connects to a running scheduler. The service still
-keeps every job in its own store (queue order, records, results) and hands the cluster as
-many jobs at a time as it has worker threads, so the cluster's size sets the throughput.
-A job reports progress through a Dask
-``Variable`` the supervisor polls, and checks a cancel ``Event`` whenever it reports
-progress, so a running job stops within one progress step of a cancel (our kinds report at
-least every second); the future is cancelled as well. A job past its time limit (counted
-from its submission to the cluster) is failed at once with "time limit of N s exceeded" and
-stopped the same way as a cancelled one.
+``--jobs-backend dask://HOST:PORT`` (or ``tcp://`` / ``tls://`` with Dask's TLS settings)
+names a scheduler. The service keeps every job in its own store (queue order, records,
+results) and hands the cluster a job's steps (``app.jobs.graph``) as tasks, so the parts of one
+big job run on every worker at once; the last step's value is the job's result. A job is
+claimed from the queue while the cluster has fewer unfinished steps than worker threads.
+
+Each task runs its step in a child process of the Dask worker (``app.jobs.runner``); it
+reports its start and progress on a Dask ``Queue`` of the job that the supervisor drains, and
+checks the job's cancel ``Event`` every 0.2 s: a cancel, or the job's time limit, kills the
+child, so the worker's CPU is free at once whatever the step is doing.
+
+Faults: the service starts without a reachable scheduler and connects when one appears; while
+none is reachable, submissions are refused (``unavailable``: 503) and ``/health`` says so, while
+the synchronous endpoints work on. Jobs running when the connection is lost stay ``running``
+and are handed to the cluster again once it is back (``attempts`` counts each start); after
+``deadline_s`` without a scheduler, jobs still running or queued fail, naming the scheduler.
+A task whose worker dies is re-run by the scheduler on another worker (counted in
+``attempts`` too). A job is never cancelled unless a client asked.
 
 Dask is an optional extra (``pip install ".[dask]"``); the embedded default never imports it.
 """
@@ -16,43 +25,112 @@ Dask is an optional extra (``pip install ".[dask]"``); the embedded default neve
 from __future__ import annotations
 
 import logging
+import threading
 import time
+from dataclasses import dataclass, field
+from typing import Any
 
 from ..store import Store
-from . import catalog  # noqa: F401 - a worker unpickling run_on_cluster gets every kind
+from . import catalog  # noqa: F401 - a worker unpickling run_step gets every kind
 from .backend import SupervisedBackend
-from .kinds import JobCancelled, execute
+from .graph import Step, Tracker, resolve
+from .kinds import JobPayload, get_kind
+from .runner import StepCancelled, StepFailed, give_back, take_runner
 
-__all__ = ["DaskBackend", "run_on_cluster"]
+__all__ = ["DaskBackend", "run_step", "DEFAULT_DEADLINE_S"]
 
 log = logging.getLogger(__name__)
 
+#: Seconds between supervisor passes.
 POLL_S = 0.1
+#: Seconds between two attempts to reach a lost scheduler.
+RECONNECT_EVERY_S = 1.0
+#: Seconds one connection attempt may take.
+CONNECT_TIMEOUT_S = 3.0
+#: Seconds without a scheduler after which running and queued jobs fail (``--cluster-
+#: deadline-s``).
+DEFAULT_DEADLINE_S = 600.0
+#: Least seconds between two progress writes of one job to the store.
+PROGRESS_WRITE_S = 0.2
+#: Seconds between two checks of a running task for its job's cancel event.
+CANCEL_CHECK_S = 0.2
 
 
-def _names(job_id: str) -> tuple[str, str]:
-    return f"kinoplan-progress-{job_id}", f"kinoplan-cancel-{job_id}"
+def _names(job_key: str) -> tuple[str, str]:
+    """The job's message queue and cancel event on the scheduler."""
+    return f"kinoplan-msgs-{job_key}", f"kinoplan-cancel-{job_key}"
 
 
-def run_on_cluster(job_id: str, kind: str, payload: dict) -> str:
-    """What a Dask worker runs: one job, with progress and cooperative cancel."""
-    from distributed import Event, Variable
+def _payload(payload: dict) -> dict:
+    """A task holding the job's payload, which every step of the job depends on (so it
+    travels once to each worker that runs a step)."""
+    return payload
 
-    progress_name, cancel_name = _names(job_id)
-    progress_var = Variable(progress_name)
-    cancel = Event(cancel_name)
-    last = [0.0]
+
+def run_step(job_key: str, index: int, kind: str, payload: dict, fn: Any, args: tuple,
+             final: bool) -> Any:
+    """What a Dask worker runs: one step of a job in a child process, with its start and
+    progress reported and the job's cancel event watched."""
+    from distributed import Event, Queue
+
+    queue_name, cancel_name = _names(job_key)
+    queue, cancel = Queue(queue_name), Event(cancel_name)
+    queue.put(("start", index))
+    last, checked = [0.0], [time.monotonic()]
 
     def progress(fraction: float, message: str) -> None:
         now = time.monotonic()
-        if now - last[0] < 0.2 and fraction < 1.0:
-            return
-        last[0] = now
-        if cancel.is_set():
-            raise JobCancelled()
-        progress_var.set([min(max(float(fraction), 0.0), 1.0), str(message)[:200]])
+        if now - last[0] >= PROGRESS_WRITE_S or fraction >= 1.0:
+            last[0] = now
+            queue.put(("progress", index, float(fraction), message))
 
-    return execute(kind, payload, progress)
+    def should_stop() -> bool:
+        now = time.monotonic()
+        if now - checked[0] < CANCEL_CHECK_S:
+            return False
+        checked[0] = now
+        try:
+            return cancel.is_set()
+        except Exception:  # noqa: BLE001 - the scheduler is gone: stop, nobody waits
+            return True
+
+    if cancel.is_set():
+        raise StepCancelled("cancelled")
+    runner = take_runner()
+    try:
+        value = runner.run(job_key, kind, payload, fn, args, final, progress, should_stop)
+    except BaseException:
+        runner.kill()
+        raise
+    give_back(runner)
+    return value
+
+
+@dataclass
+class _Job:
+    """A job handed to the cluster: its steps, their futures and what they reported."""
+
+    id: str
+    kind: str
+    payload: dict
+    steps: list[Step]
+    time_limit_s: float | None
+    deadline: float | None
+    generation: int = 0
+    futures: list = field(default_factory=list)
+    payload_future: Any = None
+    tracker: Tracker | None = None
+    starts: list[int] = field(default_factory=list)
+    last_write: float = 0.0
+    message: str = ""
+    dirty: bool = False
+
+    @property
+    def key(self) -> str:
+        return f"{self.id}-{self.generation}"
+
+    def unfinished(self) -> int:
+        return sum(1 for f in self.futures if f.status != "finished")
 
 
 class DaskBackend(SupervisedBackend):
@@ -60,114 +138,279 @@ class DaskBackend(SupervisedBackend):
 
     name = "dask"
 
-    def __init__(self, store: Store, address: str, workers: int) -> None:
+    def __init__(self, store: Store, address: str, workers: int,
+                 deadline_s: float = DEFAULT_DEADLINE_S) -> None:
         try:
-            from distributed import Client
+            import distributed  # noqa: F401
         except ImportError as exc:  # pragma: no cover - depends on the install
             raise RuntimeError(
                 "the dask backend needs the 'dask' extra: pip install '.[dask]'"
             ) from exc
         super().__init__(store, workers)
         self.address = address
-        self.client = Client(address, timeout="10s", set_as_default=False)
-        self._futures: dict[str, object] = {}
-        self._limits: dict[str, tuple[float | None, float | None]] = {}  # (limit, deadline)
+        self.deadline_s = float(deadline_s)
+        self.client: Any = None
+        self._jobs: dict[str, _Job] = {}
+        self._down_since: float = time.monotonic()
+        self._next_try = 0.0
+        self._ever_connected = False
+        self._threads = 0
+
+    # ---- state the service reads --------------------------------------------------------
+    def unavailable(self) -> str | None:
+        """Why jobs cannot be taken now (None: they can)."""
+        if self.connected():
+            return None
+        return (f"the Dask scheduler at {self.address} is unreachable (for "
+                f"{time.monotonic() - self._down_since:.0f} s); jobs are taken again once it "
+                "is back, the synchronous endpoints work meanwhile")
+
+    def connected(self) -> bool:
+        client = self.client
+        return client is not None and client.status == "running"
+
+    def parallelism(self) -> int:
+        """The cluster's worker threads (0 while no scheduler is connected)."""
+        return self._threads if self.connected() else 0
 
     def capacity(self) -> int:
-        """Jobs to keep in flight: the cluster's worker threads (at least ``workers``)."""
+        """Steps to keep on the cluster: its worker threads (at least ``workers``)."""
+        return max(self.workers, self._threads)
+
+    # ---- the connection -------------------------------------------------------------
+    def _connect(self) -> bool:
+        """Try to reach the scheduler (at most every ``RECONNECT_EVERY_S``)."""
+        now = time.monotonic()
+        if now < self._next_try:
+            return False
+        self._next_try = now + RECONNECT_EVERY_S
+        from distributed import Client
+
         try:
-            threads = sum(self.client.nthreads().values())
-        except Exception:  # noqa: BLE001 - scheduler briefly unreachable
-            threads = 0
-        return max(self.workers, threads)
+            client = Client(self.address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+        except Exception as exc:  # noqa: BLE001 - unreachable, refused, TLS, ...
+            if self._ever_connected or now - self._down_since < 2 * RECONNECT_EVERY_S:
+                log.debug("Dask scheduler at %s unreachable: %s", self.address, exc)
+            return False
+        down = time.monotonic() - self._down_since
+        self.client, self._ever_connected = client, True
+        log.warning("connected to the Dask scheduler at %s%s", self.address,
+                    f" after {down:.1f} s without it" if self._jobs else "")
+        for job in list(self._jobs.values()):
+            self._submit(job, again=True)
+        return True
+
+    def _lost(self) -> None:
+        """The connection is gone: drop the client; running jobs wait for the next one."""
+        client, self.client = self.client, None
+        self._down_since = time.monotonic()
+        self._next_try = 0.0
+        log.warning("lost the Dask scheduler at %s; %d running job(s) wait for it",
+                    self.address, len(self._jobs))
+        for job in self._jobs.values():
+            job.futures, job.payload_future = [], None
+            job.message = "waiting for the Dask scheduler"
+            job.dirty = True
+        threading.Thread(target=_close_quietly, args=(client,), daemon=True,
+                         name="kinoplan-dask-close").start()
 
     def _shutdown(self) -> None:
-        for job_id, fut in list(self._futures.items()):
-            self._signal_cancel(job_id)
-            fut.cancel()
-        self.client.close()
+        if self.client is not None:
+            for job in self._jobs.values():
+                self._signal_cancel(job)
+            _close_quietly(self.client)
+            self.client = None
 
-    def _signal_cancel(self, job_id: str) -> None:
-        from distributed import Event
-
-        Event(_names(job_id)[1], client=self.client).set()
-
+    # ---- supervisor pass -----------------------------------------------------------
     def _pass(self) -> None:
+        if self.client is not None and self.client.status != "running":
+            self._lost()
+        if self.client is None and not self._connect():
+            self._outage()
+            self._write_progress()
+            self._wake.wait(POLL_S)
+            self._wake.clear()
+            return
+        try:
+            self._threads = sum(self.client.nthreads().values())
+        except Exception:  # noqa: BLE001 - lost in between: the next pass sees it
+            pass
         self._handle_time_limits()
         self._handle_cancels()
         self._start_jobs()
         self._collect()
+        self._write_progress()
         self._wake.wait(POLL_S)
         self._wake.clear()
 
+    def _outage(self) -> None:
+        """Past the deadline without a scheduler: fail what waits for it."""
+        down = time.monotonic() - self._down_since
+        if down < self.deadline_s:
+            return
+        why = (f"the Dask scheduler at {self.address} was unreachable for {down:.0f} s "
+               f"(deadline {self.deadline_s:g} s)")
+        for job_id in list(self._jobs):
+            self._jobs.pop(job_id)
+            self._take_cancel(job_id)
+            self.store.finish_job(job_id, "failed", message="cluster unreachable", error=why)
+        while (job := self.store.claim_next_job()) is not None:
+            self.store.finish_job(job.id, "failed", message="cluster unreachable", error=why)
+
     def _start_jobs(self) -> None:
-        cap = self.capacity()
-        while len(self._futures) < cap and not self._stop.is_set():
-            job = self.store.claim_next_job()
-            if job is None:
+        while not self._stop.is_set():
+            busy = sum(job.unfinished() for job in self._jobs.values())
+            if busy >= self.capacity():
                 return
-            payload = self.store.job_payload(job.id)
-            fut = self.client.submit(run_on_cluster, job.id, job.kind, payload,
-                                     key=f"kinoplan-job-{job.id}-{job.attempts}", pure=False)
-            self._futures[job.id] = fut
-            self._limits[job.id] = (job.time_limit_s, self._deadline(job.time_limit_s))
+            record = self.store.claim_next_job()
+            if record is None:
+                return
+            try:
+                payload = self.store.job_payload(record.id)
+                kind = get_kind(record.kind)
+                steps = kind.steps(kind.load_params(JobPayload.from_stored(payload).params))
+            except Exception as exc:  # noqa: BLE001 - a job that cannot be planned fails
+                self.store.finish_job(record.id, "failed", message="failed",
+                                      error=f"{type(exc).__name__}: {exc}")
+                continue
+            job = _Job(record.id, record.kind, payload, steps, record.time_limit_s,
+                       self._deadline(record.time_limit_s))
+            self._jobs[job.id] = job
+            self._submit(job)
+
+    def _submit(self, job: _Job, again: bool = False) -> None:
+        """Hand the job's steps to the cluster (``again``: after the cluster was lost)."""
+        if again:
+            job.generation += 1
+            self.store.count_attempt(job.id, "re-submitted after the cluster was lost")
+        client = self.client
+        key = job.key
+        job.payload_future = client.submit(_payload, job.payload, key=f"kinoplan-{key}-payload",
+                                           pure=False)
+        last = len(job.steps) - 1
+        futures: list = []
+        for i, step in enumerate(job.steps):
+            args = resolve(step.args, futures)
+            futures.append(client.submit(
+                run_step, key, i, job.kind, job.payload_future, step.fn, args, i == last,
+                key=f"kinoplan-{key}-step-{i}", pure=False, retries=0))
+        job.futures = futures
+        job.tracker = Tracker(job.steps)
+        job.starts = [0] * len(job.steps)
 
     def _collect(self) -> None:
-        from distributed import Variable
+        from distributed import Queue
 
-        for job_id, fut in list(self._futures.items()):
-            status = fut.status
-            if status == "pending":
-                got = None
-                try:
-                    got = Variable(_names(job_id)[0], client=self.client).get(timeout=0.01)
-                except Exception:  # noqa: BLE001 - no progress reported yet
-                    pass
-                if got:
-                    self.store.set_progress(job_id, float(got[0]), str(got[1]))
+        for job in list(self._jobs.values()):
+            if not job.futures:
                 continue
-            self._futures.pop(job_id)
-            self._limits.pop(job_id, None)
-            cancelled = self._take_cancel(job_id)
-            if status == "finished":
-                self.store.finish_job(job_id, "succeeded", result_json=fut.result(),
-                                      message="done")
-            elif cancelled or status == "cancelled":
-                self.store.finish_job(job_id, "cancelled", message="cancelled")
-            else:
-                exc = fut.exception()
-                if isinstance(exc, JobCancelled):
-                    self.store.finish_job(job_id, "cancelled", message="cancelled")
-                else:
-                    self.store.finish_job(job_id, "failed", message="failed",
-                                          error=f"{type(exc).__name__}: {exc}")
-            self._forget(job_id)
-
-    def _forget(self, job_id: str) -> None:
-        """Drop the job's progress variable from the scheduler."""
-        from distributed import Variable
-
-        for name in _names(job_id):
             try:
-                Variable(name, client=self.client).delete()
-            except Exception:  # noqa: BLE001 - Events have no delete; best effort
-                pass
+                msgs = Queue(_names(job.key)[0], client=self.client).get(batch=True)
+            except Exception:  # noqa: BLE001 - no message yet, or the scheduler just left
+                msgs = []
+            for msg in msgs or ():
+                self._message(job, msg)
+            final = job.futures[-1]
+            failed = next((f for f in job.futures if f.status in ("error", "cancelled")),
+                          None)
+            if final.status == "finished":
+                self._end(job, "succeeded", result_json=final.result())
+            elif failed is not None:
+                self._failed(job, failed)
+
+    def _message(self, job: _Job, msg: Any) -> None:
+        if msg[0] == "start":
+            index = msg[1]
+            job.starts[index] += 1
+            if job.starts[index] > 1:  # the scheduler re-ran it: its worker was lost
+                self.store.count_attempt(job.id, f"step {index + 1} re-run on another worker")
+        elif msg[0] == "progress" and job.tracker is not None:
+            _, index, fraction, text = msg
+            job.tracker.update(index, fraction)
+            label = job.steps[index].label
+            job.message = f"{label}: {text}" if label else text
+            job.dirty = True
+
+    def _failed(self, job: _Job, fut: Any) -> None:
+        if fut.status == "cancelled":
+            # Not ours (we drop a job's futures before cancelling them): the client lost the
+            # scheduler under it; the job waits for the connection to come back.
+            if self.client is not None and self.client.status == "running":
+                log.warning("job %s: its tasks were dropped by the cluster; handing it over "
+                            "again", job.id)
+                self._signal_cancel(job)
+                self._submit(job, again=True)
+            return
+        exc = fut.exception()
+        if isinstance(exc, StepCancelled):
+            self._end(job, "cancelled")
+        else:
+            text = str(exc) if isinstance(exc, StepFailed) else f"{type(exc).__name__}: {exc}"
+            self._end(job, "failed", error=text)
+
+    def _end(self, job: _Job, status: str, *, result_json: str | None = None,
+             error: str | None = None) -> None:
+        asked = self._take_cancel(job.id)
+        self._jobs.pop(job.id, None)
+        if asked:
+            status, result_json, error = "cancelled", None, None
+        message = {"succeeded": "done", "cancelled": "cancelled"}.get(status, "failed")
+        self.store.finish_job(job.id, status, result_json=result_json, error=error,
+                              message=message)
+        self._release(job)
+
+    def _release(self, job: _Job) -> None:
+        """Stop the job's tasks and drop what it left on the scheduler."""
+        futures = [f for f in [*job.futures, job.payload_future] if f is not None]
+        job.futures, job.payload_future = [], None
+        if self.client is None:
+            return
+        try:
+            self.client.cancel(futures)
+            from distributed import Queue
+
+            Queue(_names(job.key)[0], client=self.client).close()
+        except Exception:  # noqa: BLE001 - best effort; the scheduler may be gone
+            pass
+
+    def _signal_cancel(self, job: _Job) -> None:
+        if self.client is None:
+            return
+        from distributed import Event
+
+        try:
+            Event(_names(job.key)[1], client=self.client).set()
+        except Exception:  # noqa: BLE001 - lost: its tasks end with their worker's session
+            pass
+
+    def _write_progress(self) -> None:
+        now = time.monotonic()
+        for job in self._jobs.values():
+            if job.dirty and now - job.last_write >= PROGRESS_WRITE_S:
+                fraction = job.tracker.fraction() if job.tracker is not None else 0.0
+                self.store.set_progress(job.id, fraction, job.message[:200])
+                job.dirty, job.last_write = False, now
 
     def _handle_time_limits(self) -> None:
-        """Fail the jobs past their time limit now; stop them as a cancel does."""
-        overdue = self._overdue({job_id: deadline
-                                 for job_id, (_, deadline) in self._limits.items()})
+        """Fail the jobs past their time limit now; stop their tasks as a cancel does."""
+        overdue = self._overdue({j.id: j.deadline for j in self._jobs.values()})
         for job_id in overdue:
-            limit, _ = self._limits.pop(job_id)
-            fut = self._futures.pop(job_id, None)
-            self._signal_cancel(job_id)
-            if fut is not None:
-                fut.cancel()
+            job = self._jobs.pop(job_id)
+            self._signal_cancel(job)
+            self._release(job)
             self._take_cancel(job_id)
-            self._fail_over_time(job_id, limit or 0.0)
-            self._forget(job_id)
+            self._fail_over_time(job_id, job.time_limit_s or 0.0)
 
     def _handle_cancels(self) -> None:
-        for job_id in self._cancel_requested(set(self._futures)):
-            self._signal_cancel(job_id)
-            self._futures[job_id].cancel()
+        for job_id in self._cancel_requested(set(self._jobs)):
+            job = self._jobs[job_id]
+            self._signal_cancel(job)
+            self._end(job, "cancelled")
+
+
+def _close_quietly(client: Any) -> None:
+    try:
+        client.close(timeout=2)
+    except Exception:  # noqa: BLE001 - a client of a dead scheduler may fail to close
+        pass
+

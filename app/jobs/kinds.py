@@ -39,6 +39,7 @@ from pydantic import BaseModel, ConfigDict, Field, JsonValue, PrivateAttr, Valid
 
 from ..fields import StrictModel
 from .caps import MAX_PARAMS_BYTES
+from .graph import Step, check, whole
 
 if TYPE_CHECKING:
     from kinematics.model import RobotModel
@@ -57,6 +58,7 @@ __all__ = [
     "register",
     "get_kind",
     "execute",
+    "load_job",
     "error_text",
     "absent_when_none",
     "pick",
@@ -167,6 +169,16 @@ class JobKind(Generic[P, R]):
     needs_robot: bool = False
     max_params_bytes: int = MAX_PARAMS_BYTES
     plot: Callable[[P, R, RobotModel | None], bytes] | None = None
+    #: The job as steps several workers can share (``app.jobs.graph``); None: one step,
+    #: ``run``. A kind with a graph runs it inline in ``run``, so its result is the same
+    #: however the steps are spread.
+    graph: Callable[[P], list[Step]] | None = None
+
+    def steps(self, params: P) -> list[Step]:
+        """The steps of a job with ``params``: its kind's graph, or ``run`` as one step."""
+        steps = self.graph(params) if self.graph is not None else whole(self.run)
+        check(steps)
+        return steps
 
     def robot_id(self, params: P) -> str | None:
         """The robot the job's params name (None: no robot)."""
@@ -241,9 +253,9 @@ class JobPayload(BaseModel):
         return cls(params=params, robot_model=params.pop("_model", None))
 
 
-def execute(name: str, payload: Mapping[str, Any], progress: Progress) -> str:
-    """Run a job in a worker: rebuild the params model from the payload, attach the robot
-    model, run the kind; the result's JSON text, checked against the kind's ``Result``."""
+def load_job(name: str, payload: Mapping[str, Any]) -> tuple[JobKind, Params]:
+    """The kind and the params model of a job's payload, with its robot model (and an
+    imported robot's geometry) attached: what a worker needs to run any of its steps."""
     kind = get_kind(name)
     job = JobPayload.from_stored(payload)
     params = kind.load_params(job.params)
@@ -253,6 +265,13 @@ def execute(name: str, payload: Mapping[str, Any], progress: Progress) -> str:
         params.attach_robot_model(RobotModel.from_dict(job.robot_model))
     if job.robot_files:
         params.attach_imported(*_imported_of(job.robot_files))
+    return kind, params
+
+
+def execute(name: str, payload: Mapping[str, Any], progress: Progress) -> str:
+    """Run a job in one process: rebuild the params model from the payload, attach the robot
+    model, run the kind; the result's JSON text, checked against the kind's ``Result``."""
+    kind, params = load_job(name, payload)
     return kind.result_json(kind.run(params, progress))
 
 

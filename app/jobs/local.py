@@ -1,16 +1,19 @@
-"""The embedded job backend: each running job in a worker process of its own.
+"""The embedded job backend: each step of a running job in a worker process of its own.
 
-A supervisor thread in the service starts up to ``workers`` processes (forked from a
-forkserver that has numpy, scipy and the job kinds already imported, so a start costs
-milliseconds), listens on a pipe per job for progress and the result, and writes both to the
-store. One process per job is what keeps a crash contained: a job that segfaults, calls
-``os._exit`` or is killed for memory fails alone, and the next job gets a fresh process.
-A worker runs ``app.jobs.kinds.execute``: the params model rebuilt from the stored JSON, the
-result checked against its kind's ``Result`` before it is sent back (a mismatch fails the
-job, naming the field).
-Cancel terminates the process (SIGTERM, then SIGKILL after a grace period), well within 2 s;
-so does the job's time limit, counted from the start of its process, after which the job
-fails with "time limit of N s exceeded".
+A job is a graph of steps (``app.jobs.graph``: one step for most kinds; the parts and merges
+of a big workspace, a motion batch, tracking statistics, ... for the kinds that divide). A
+supervisor thread in the service runs up to ``workers`` steps at a time, of one job or of
+several (the oldest running job's ready steps first, then the next queued job), each in a
+process forked from a forkserver that has numpy, scipy and the job kinds already imported (a
+start costs milliseconds). It listens on a pipe per step for progress and the step's value,
+keeps the values later steps need, and writes the job's progress (the steps' own, weighted)
+and its result to the store. One process per step keeps a crash contained: a step that
+segfaults, calls ``os._exit`` or is killed for memory fails its job alone. A step's process
+rebuilds the params model from the stored JSON; the last step's value is checked against the
+kind's ``Result`` before it is sent back (a mismatch fails the job, naming the field).
+Cancel terminates the job's processes (SIGTERM, then SIGKILL after a grace period), well
+within 2 s; so does the job's time limit, counted from the start of its first step, after
+which the job fails with "time limit of N s exceeded".
 """
 
 from __future__ import annotations
@@ -19,13 +22,15 @@ import logging
 import multiprocessing
 import signal
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
+from typing import Any
 
-from ..store import Store, StoreError
+from ..store import JobRecord, Store, StoreError
 from . import catalog
 from .backend import SupervisedBackend
-from .kinds import JobCancelled, execute
+from .graph import Step, Tracker, refs_of, resolve
+from .kinds import JobCancelled, JobPayload, get_kind, load_job
 
 __all__ = ["LocalBackend"]
 
@@ -39,8 +44,9 @@ TERMINATE_GRACE_S = 0.5
 PROGRESS_WRITE_S = 0.2
 
 
-def _child_main(conn: Connection, kind: str, payload: dict) -> None:
-    """Body of a worker process: run one job, send progress and the outcome down ``conn``."""
+def _child_main(conn: Connection, kind: str, payload: dict, fn: Any, args: tuple,
+                final: bool) -> None:
+    """Body of a worker process: run one step, send progress and its value down ``conn``."""
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C in a terminal is the service's
     last = [0.0]
@@ -52,10 +58,12 @@ def _child_main(conn: Connection, kind: str, payload: dict) -> None:
             conn.send(("progress", min(max(float(fraction), 0.0), 1.0), str(message)[:200]))
 
     try:
-        conn.send(("result", execute(kind, payload, progress)))
+        job_kind, params = load_job(kind, payload)
+        value = fn(params, *args, progress)
+        conn.send(("value", job_kind.result_json(value) if final else value))
     except JobCancelled:
         conn.send(("cancelled", ""))
-    except BaseException as exc:  # noqa: BLE001 - everything a job raises is its failure
+    except BaseException as exc:  # noqa: BLE001 - everything a step raises is its failure
         conn.send(("error", f"{type(exc).__name__}: {exc}"))
     finally:
         conn.close()
@@ -63,20 +71,49 @@ def _child_main(conn: Connection, kind: str, payload: dict) -> None:
 
 @dataclass
 class _Running:
+    """One step's process."""
+
+    job_id: str
+    index: int
     process: multiprocessing.process.BaseProcess
     conn: Connection
-    last_write: float = 0.0
     outcome: tuple | None = None
-    pending_progress: tuple[float, str] | None = None
     cancel_at: float | None = None
-    time_limit_s: float | None = None
-    deadline: float | None = None
+
+
+@dataclass
+class _Job:
+    """A running job: its steps, the values later steps still need, its processes."""
+
+    record: JobRecord
+    payload: dict
+    steps: list[Step]
+    tracker: Tracker
+    deadline: float | None
+    #: Steps not started yet, in order, with the steps each waits for.
+    waiting: dict[int, set[int]]
+    #: Values of finished steps that a later step still needs, and how many still do.
+    values: dict[int, Any] = field(default_factory=dict)
+    users: dict[int, int] = field(default_factory=dict)
+    running: dict[int, _Running] = field(default_factory=dict)
+    last_write: float = 0.0
+    message: str = "started"
+    dirty: bool = False
     over_time: bool = False
     cancelled: bool | None = None  # asked to stop (read once, kept until the outcome is saved)
+    #: The outcome once decided: ("succeeded", result) / ("failed", error) / ("cancelled",).
+    ending: tuple | None = None
+
+    @property
+    def id(self) -> str:
+        return self.record.id
+
+    def ready(self) -> list[int]:
+        return [i for i, deps in self.waiting.items() if not deps]
 
 
 class LocalBackend(SupervisedBackend):
-    """Runs queued jobs of ``store`` in up to ``workers`` processes at a time."""
+    """Runs the steps of queued jobs of ``store`` in up to ``workers`` processes at a time."""
 
     name = "local"
 
@@ -88,122 +125,231 @@ class LocalBackend(SupervisedBackend):
             ["numpy", "scipy", "scipy.optimize", "scipy.interpolate", "scipy.sparse",
              catalog.__name__]
         )
-        self._running: dict[str, _Running] = {}
-        # Jobs claimed (marked running) whose process could not be started yet because the
+        self._jobs: dict[str, _Job] = {}
+        # Jobs claimed (marked running) whose steps could not be planned yet because the
         # store failed between the claim and reading the payload: started first next pass.
         self._claimed: list = []
 
+    @property
+    def _running(self) -> dict[str, _Job]:
+        """The running jobs (by id)."""
+        return self._jobs
+
+    def _procs(self) -> list[_Running]:
+        return [run for job in self._jobs.values() for run in job.running.values()]
+
     def _shutdown(self) -> None:
-        for job_id, run in list(self._running.items()):
+        for run in self._procs():
             self._terminate(run)
             run.conn.close()
-            self._running.pop(job_id, None)
+        self._jobs.clear()
 
     def _pass(self) -> None:
         self._handle_time_limits()
         self._handle_cancels()
-        self._start_jobs()
+        self._start_steps()
         self._collect()
+        self._settle()
 
-    def _start_jobs(self) -> None:
-        while len(self._running) < self.workers and not self._stop.is_set():
-            job = self._claimed.pop(0) if self._claimed else self.store.claim_next_job()
-            if job is None:
+    # ---- starting ------------------------------------------------------------------
+    def _start_steps(self) -> None:
+        """Fill free process slots: ready steps of running jobs (oldest first), then the
+        steps of newly claimed jobs."""
+        while not self._stop.is_set():
+            free = self.workers - len(self._procs())
+            if free <= 0:
                 return
-            try:
-                payload = self.store.job_payload(job.id)
-            except StoreError:
-                self._claimed.insert(0, job)  # not lost: started once the store answers
-                raise
-            parent, child = self._ctx.Pipe(duplex=False)
-            proc = self._ctx.Process(target=_child_main, args=(child, job.kind, payload),
-                                     name=f"kinoplan-job-{job.id}", daemon=True)
-            proc.start()
-            child.close()
-            self._running[job.id] = _Running(proc, parent, time_limit_s=job.time_limit_s,
-                                             deadline=self._deadline(job.time_limit_s))
-            log.info("job %s (%s) started in process %s", job.id, job.kind, proc.pid)
+            job = next((j for j in self._jobs.values() if j.ending is None and j.ready()),
+                       None)
+            if job is None:
+                job = self._claim()
+                if job is None:
+                    return
+                if not job.ready():
+                    continue
+            for index in job.ready()[:free]:
+                self._spawn(job, index)
 
+    def _claim(self) -> _Job | None:
+        record = self._claimed.pop(0) if self._claimed else self.store.claim_next_job()
+        if record is None:
+            return None
+        try:
+            payload = self.store.job_payload(record.id)
+        except StoreError:
+            self._claimed.insert(0, record)  # not lost: started once the store answers
+            raise
+        try:
+            kind = get_kind(record.kind)
+            steps = kind.steps(kind.load_params(JobPayload.from_stored(payload).params))
+        except Exception as exc:  # noqa: BLE001 - a job that cannot be planned fails
+            self.store.finish_job(record.id, "failed", message="failed",
+                                  error=f"{type(exc).__name__}: {exc}")
+            return self._claim()
+        users: dict[int, int] = {}
+        waiting = {}
+        for i, step in enumerate(steps):
+            deps = refs_of(step)
+            waiting[i] = set(deps)
+            for j in deps:
+                users[j] = users.get(j, 0) + 1
+        job = _Job(record, payload, steps, Tracker(steps), self._deadline(record.time_limit_s),
+                   waiting, users=users)
+        self._jobs[record.id] = job
+        return job
+
+    def _spawn(self, job: _Job, index: int) -> None:
+        step = job.steps[index]
+        job.waiting.pop(index)
+        args = resolve(step.args, job.values.__getitem__)
+        final = index == len(job.steps) - 1
+        parent, child = self._ctx.Pipe(duplex=False)
+        proc = self._ctx.Process(
+            target=_child_main, args=(child, job.record.kind, job.payload, step.fn, args, final),
+            name=f"kinoplan-job-{job.id}-{index}", daemon=True)
+        proc.start()
+        child.close()
+        job.running[index] = _Running(job.id, index, proc, parent)
+        log.info("job %s (%s) step %d of %d started in process %s", job.id, job.record.kind,
+                 index + 1, len(job.steps), proc.pid)
+
+    # ---- collecting ----------------------------------------------------------------
     def _collect(self) -> None:
-        conns = {run.conn: job_id for job_id, run in self._running.items()}
-        sentinels = {run.process.sentinel: job_id for job_id, run in self._running.items()}
+        runs = self._procs()
+        conns = {run.conn: run for run in runs}
         self._wake.clear()
-        ready = wait(list(conns) + list(sentinels), timeout=POLL_S) if conns else []
-        if not conns:
+        if runs:
+            ready = wait(list(conns) + [run.process.sentinel for run in runs], timeout=POLL_S)
+        else:
+            ready = []
             self._wake.wait(POLL_S)
         for obj in ready:
-            job_id = conns.get(obj)
-            if job_id is not None:
-                self._drain(job_id)
-        now = time.monotonic()
-        for job_id, run in list(self._running.items()):
-            if run.pending_progress and now - run.last_write >= PROGRESS_WRITE_S:
-                self.store.set_progress(job_id, *run.pending_progress)
-                run.pending_progress, run.last_write = None, now
+            run = conns.get(obj)
+            if run is not None:
+                self._drain(run)
+        for run in runs:
             if run.process.is_alive():
                 continue
-            self._drain(job_id)  # a result sent just before exit
+            self._drain(run)  # a value sent just before exit
             run.process.join()
-            self._finish(job_id, run)
+            self._step_ended(self._jobs[run.job_id], run)
 
-    def _drain(self, job_id: str) -> None:
-        run = self._running.get(job_id)
-        if run is None:
-            return
+    def _drain(self, run: _Running) -> None:
+        job = self._jobs.get(run.job_id)
         try:
             while run.conn.poll():
                 msg = run.conn.recv()
                 if msg[0] == "progress":
-                    run.pending_progress = (msg[1], msg[2])
+                    if job is not None:
+                        job.tracker.update(run.index, msg[1])
+                        label = job.steps[run.index].label
+                        job.message = f"{label}: {msg[2]}" if label else msg[2]
+                        job.dirty = True
                 else:
                     run.outcome = msg
         except (EOFError, OSError):
             pass
 
-    def _finish(self, job_id: str, run: _Running) -> None:
-        """Save the outcome of a job whose process has ended. If the store fails, the job
-        stays in ``_running`` with its outcome, and the next pass saves it again."""
-        if run.cancelled is None:
-            run.cancelled = self._take_cancel(job_id)
-        cancelled = run.cancelled
-        kind, text = run.outcome if run.outcome else (None, None)
-        if cancelled or kind == "cancelled":
-            self.store.finish_job(job_id, "cancelled", message="cancelled")
-        elif run.over_time and kind != "result":
-            self._fail_over_time(job_id, run.time_limit_s or 0.0)
-        elif kind == "result":
-            self.store.finish_job(job_id, "succeeded", result_json=text, message="done")
+    def _step_ended(self, job: _Job, run: _Running) -> None:
+        """A step's process has exited: keep its value, or decide the job's outcome."""
+        job.running.pop(run.index, None)
+        run.conn.close()
+        kind, value = run.outcome if run.outcome else (None, None)
+        if job.ending is not None:
+            return
+        if kind == "value":
+            job.tracker.update(run.index, 1.0)
+            job.dirty = True
+            if run.index == len(job.steps) - 1:
+                job.ending = ("succeeded", value)
+                return
+            if job.users.get(run.index):
+                job.values[run.index] = value
+            for deps in job.waiting.values():
+                deps.discard(run.index)
+            for j in refs_of(job.steps[run.index]):
+                job.users[j] -= 1
+                if job.users[j] == 0:
+                    job.values.pop(j, None)
+            return
+        if kind == "cancelled":
+            job.ending = ("cancelled",)
         elif kind == "error":
-            self.store.finish_job(job_id, "failed", error=text, message="failed")
-        else:
+            job.ending = ("failed", value)
+        elif run.cancel_at is None:
             code = run.process.exitcode
             why = (f"killed by signal {-code}" if code is not None and code < 0
                    else f"exit code {code}")
-            self.store.finish_job(
-                job_id, "failed", message="worker died",
-                error=f"the worker process died ({why}) before the job finished",
-            )
-        self._running.pop(job_id, None)
-        run.conn.close()
-        log.info("job %s ended (%s)", job_id, kind or "died")
+            job.ending = ("died", f"the worker process died ({why}) before the job finished")
+        else:
+            job.ending = ("stopped",)
+        for other in job.running.values():  # the job has failed: its other steps stop
+            self._stop_process(other)
+
+    def _settle(self) -> None:
+        """Write progress, and the outcome of each job whose processes have all ended. If
+        the store fails, the job stays with its outcome and the next pass saves it again."""
+        now = time.monotonic()
+        for job in list(self._jobs.values()):
+            if job.dirty and job.ending is None and now - job.last_write >= PROGRESS_WRITE_S:
+                self.store.set_progress(job.id, job.tracker.fraction(), job.message)
+                job.dirty, job.last_write = False, now
+            if job.ending is None or job.running:
+                continue
+            self._finish(job)
+
+    def _finish(self, job: _Job) -> None:
+        if job.cancelled is None:
+            job.cancelled = self._take_cancel(job.id)
+        what = job.ending[0]
+        if job.cancelled or what == "cancelled":
+            self.store.finish_job(job.id, "cancelled", message="cancelled")
+        elif job.over_time and what != "succeeded":
+            self._fail_over_time(job.id, job.record.time_limit_s or 0.0)
+        elif what == "succeeded":
+            self.store.finish_job(job.id, "succeeded", result_json=job.ending[1],
+                                  message="done")
+        elif what == "failed":
+            self.store.finish_job(job.id, "failed", error=job.ending[1], message="failed")
+        else:
+            self.store.finish_job(job.id, "failed", message="worker died",
+                                  error=job.ending[1] if what == "died" else
+                                  "the job's worker process was stopped")
+        self._jobs.pop(job.id, None)
+        log.info("job %s ended (%s)", job.id, what)
+
+    # ---- stopping ------------------------------------------------------------------
+    def _stop_job(self, job: _Job) -> None:
+        """Stop every process of the job; it ends once they have exited."""
+        if job.ending is None:
+            job.ending = ("stopped",)
+        for run in job.running.values():
+            self._stop_process(run)
 
     def _handle_cancels(self) -> None:
-        for job_id in self._cancel_requested(set(self._running)):
-            self._stop_process(self._running[job_id])
+        """Stop cancelled jobs, and the other steps of jobs that have failed (SIGKILL once
+        a process outlives its grace period)."""
+        for job_id in self._cancel_requested(set(self._jobs)):
+            self._stop_job(self._jobs[job_id])
+        for job in self._jobs.values():
+            if job.ending is not None and job.running:
+                self._stop_job(job)
 
     def _handle_time_limits(self) -> None:
         """Stop the processes of jobs past their time limit (they fail when they exit)."""
-        overdue = self._overdue({job_id: run.deadline for job_id, run in self._running.items()})
+        overdue = self._overdue({job_id: job.deadline for job_id, job in self._jobs.items()
+                                 if job.ending is None or job.running})
         for job_id in overdue:
-            run = self._running[job_id]
-            if not run.over_time:
-                log.info("job %s reached its time limit of %g s", job_id, run.time_limit_s)
-            run.over_time = True
-            self._stop_process(run)
+            job = self._jobs[job_id]
+            if not job.over_time:
+                log.info("job %s reached its time limit of %g s", job_id,
+                         job.record.time_limit_s)
+            job.over_time = True
+            self._stop_job(job)
 
     @staticmethod
     def _stop_process(run: _Running) -> None:
-        """SIGTERM the job's process, SIGKILL it once the grace period has passed."""
+        """SIGTERM the step's process, SIGKILL it once the grace period has passed."""
         if run.cancel_at is None:
             run.cancel_at = time.monotonic()
             run.process.terminate()

@@ -21,11 +21,12 @@ from .motion_kinds import prepare_motion
 GEOMETRY_KINDS = frozenset({"motion"})
 
 __all__ = ["JobManager", "JobParamsError", "QueueFullError", "JobStateError",
-           "MAX_ATTEMPTS", "make_backend"]
+           "BackendUnavailable", "MAX_ATTEMPTS", "make_backend"]
 
 log = logging.getLogger(__name__)
 
-#: A job interrupted by this many service restarts is failed instead of run again.
+#: A job started this many times without finishing (service restarts, lost workers) is
+#: failed at the next start of the service instead of run again.
 MAX_ATTEMPTS = 3
 
 
@@ -59,17 +60,26 @@ class JobStateError(RuntimeError):
     """The job is not in a state that allows the request (e.g. its result is not ready)."""
 
 
-def make_backend(store: Store, jobs_backend: str, workers: int):
-    """The backend named by ``--jobs-backend``: 'local' or 'dask://HOST:PORT'."""
+class BackendUnavailable(RuntimeError):
+    """The job backend cannot take jobs now (its cluster is unreachable): 503."""
+
+
+def make_backend(store: Store, jobs_backend: str, workers: int, *,
+                 cluster_deadline_s: float | None = None):
+    """The backend named by ``--jobs-backend``: 'local', or a Dask scheduler's address
+    'dask://HOST:PORT' (= 'tcp://HOST:PORT') or 'tls://HOST:PORT'."""
     if jobs_backend == "local":
         from .local import LocalBackend
 
         return LocalBackend(store, workers)
-    if jobs_backend.startswith("dask://"):
-        from .dask_backend import DaskBackend
+    for prefix, protocol in (("dask://", "tcp://"), ("tcp://", "tcp://"), ("tls://", "tls://")):
+        if jobs_backend.startswith(prefix):
+            from .dask_backend import DEFAULT_DEADLINE_S, DaskBackend
 
-        return DaskBackend(store, "tcp://" + jobs_backend.removeprefix("dask://"), workers)
-    raise ValueError(f"jobs_backend must be 'local' or 'dask://HOST:PORT', got {jobs_backend!r}")
+            return DaskBackend(store, protocol + jobs_backend.removeprefix(prefix), workers,
+                               cluster_deadline_s or DEFAULT_DEADLINE_S)
+    raise ValueError("jobs_backend must be 'local', 'dask://HOST:PORT' or 'tls://HOST:PORT', "
+                     f"got {jobs_backend!r}")
 
 
 #: Job kinds whose ``scene`` may name a stored scene.
@@ -81,8 +91,11 @@ class JobManager:
     lifespan), so building an app for a test starts no processes."""
 
     def __init__(self, store: Store, registry: RobotRegistry, jobs_backend: str, workers: int,
-                 max_queued: int, time_limit_s: float = DEFAULT_TIME_LIMIT_S) -> None:
+                 max_queued: int, time_limit_s: float = DEFAULT_TIME_LIMIT_S,
+                 cluster_deadline_s: float | None = None) -> None:
         self.store = store
+        #: Seconds the Dask backend waits for a lost scheduler (``Settings.cluster_deadline_s``).
+        self.cluster_deadline_s = cluster_deadline_s
         #: Seconds a job may run unless it asks for less (``Settings.job_time_limit_s``).
         self.time_limit_s = time_limit_s
         self.registry = registry
@@ -100,7 +113,8 @@ class JobManager:
         if requeued or failed:
             log.warning("after restart: %d interrupted job(s) queued again, %d failed",
                         requeued, failed)
-        self.backend = make_backend(self.store, self.jobs_backend, self.workers)
+        self.backend = make_backend(self.store, self.jobs_backend, self.workers,
+                                    cluster_deadline_s=self.cluster_deadline_s)
         self.backend.start()
 
     def stop(self) -> None:
@@ -113,9 +127,15 @@ class JobManager:
         return self.backend is not None and self.backend.alive()
 
     # ---- requests -------------------------------------------------------------------------
+    def unavailable(self) -> str | None:
+        """Why the backend takes no jobs now (its cluster is unreachable); None: it does."""
+        check = getattr(self.backend, "unavailable", None)
+        return check() if check is not None else None
+
     def submit(self, kind: str, params: dict[str, Any], time_limit_s: float | None = None,
                max_time_limit_s: float | None = None) -> JobRecord:
-        """Validate and queue a job; raises JobParamsError or QueueFullError. The job may run
+        """Validate and queue a job; raises JobParamsError, QueueFullError or
+        BackendUnavailable (after the params were found valid). The job may run
         ``time_limit_s`` seconds (default and most: ``max_time_limit_s``, itself by default
         the manager's ``time_limit_s``)."""
         if max_time_limit_s is None:
@@ -156,6 +176,9 @@ class JobManager:
                                      status=404) from None
             except CollisionNotReady as exc:
                 raise JobParamsError(["params", "robot"], str(exc), status=409) from None
+        why = self.unavailable()
+        if why is not None:
+            raise BackendUnavailable(why)
         job = self.store.add_job(uuid.uuid4().hex[:16], kind, clean,
                                  payload.model_dump(mode="json", exclude=(
                                      {"robot_files"} if payload.robot_files is None

@@ -98,7 +98,7 @@ def open_with(store: Store, monkeypatch, *pragmas: str) -> None:
 def test_health_reports_the_store_and_the_jobs(client):
     body = assert_health(client, None)
     # Built but not served: the job supervisor has not been started, which is no fault.
-    assert body["jobs"] == {"ok": True, "running": False, "error": None}
+    assert body["jobs"] == {"ok": True, "running": False, "error": None, "workers": None}
 
 
 def test_health_503_is_documented_with_the_health_body(client):
@@ -145,9 +145,10 @@ def test_health_answers_when_the_store_check_hangs(client, monkeypatch):
     (SimpleNamespace(name="local", alive=lambda: False, failing=None),
      "local job supervisor has stopped"),
     (SimpleNamespace(name="dask", alive=lambda: True, failing=None,
-                     client=SimpleNamespace(status="connecting")),
-     "Dask scheduler is connecting"),
-    (SimpleNamespace(name="local", alive=lambda: True, failing="StoreError: x"),
+                     unavailable=lambda: "the Dask scheduler at tcp://h:1 is unreachable"),
+     "Dask scheduler at tcp://h:1 is unreachable"),
+    (SimpleNamespace(name="local", alive=lambda: True, failing="StoreError: x",
+                     parallelism=lambda: 2),
      "failing"),
 ])
 def test_health_names_a_job_backend_that_does_not_work(client, backend, words):
@@ -158,8 +159,10 @@ def test_health_names_a_job_backend_that_does_not_work(client, backend, words):
     assert body["status"] == "degraded" and body["store"]["ok"] is True
     assert body["jobs"]["ok"] is False and words in body["jobs"]["error"]
     client.app.state.jobs.backend = SimpleNamespace(
-        name="dask", alive=lambda: True, failing=None, client=SimpleNamespace(status="running"))
-    assert client.get("/health").json()["jobs"] == {"ok": True, "running": True, "error": None}
+        name="dask", alive=lambda: True, failing=None, unavailable=lambda: None,
+        parallelism=lambda: 4)
+    assert client.get("/health").json()["jobs"] == {"ok": True, "running": True, "error": None,
+                                                    "workers": 4}
 
 
 # ---- each failure: 503s, then the repaired store is picked up -----------------------------
@@ -330,7 +333,7 @@ def test_job_loop_backs_off_logs_once_and_recovers(tmp_path, caplog, monkeypatch
         recovered = [r.getMessage() for r in caplog.records if r.name == "app.jobs.backend"]
         assert len(recovered) == 1 and "recovered" in recovered[0]
         assert assert_health(client, None)["jobs"] == {"ok": True, "running": True,
-                                                       "error": None}
+                                                       "error": None, "workers": 1}
 
 
 class _Flaky(SupervisedBackend):

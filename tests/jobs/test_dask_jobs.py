@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 
 import pytest
@@ -86,3 +87,52 @@ def test_time_limit(dask_client):
     assert time.monotonic() - t0 < 3.0
     # The cluster's thread is free again: the next job runs.
     assert wait_for(dask_client, submit(dask_client, "echo", value=5))["status"] == "succeeded"
+
+
+def test_one_job_spreads_over_both_workers(cluster, tmp_path, monkeypatch):
+    from app.jobs.graph import run_inline
+    from app.jobs.kinds import KINDS
+
+    from . import graph_kinds
+    from .test_job_graph_backends import overlapping
+
+    monkeypatch.setitem(KINDS, graph_kinds.NAME, graph_kinds.KIND)
+    address = cluster.scheduler_address.removeprefix("tcp://")
+    settings = Settings(no_viewer=True, data_dir=tmp_path, jobs_backend=f"dask://{address}")
+    with TestClient(create_app(settings)) as client:
+        assert client.get("/health").json()["jobs"]["workers"] == 2
+        job_id = submit(client, graph_kinds.NAME, parts=4, part_s=1.0)
+        job = wait_for(client, job_id, timeout=60)
+        assert job["status"] == "succeeded", job
+        assert job["attempts"] == 1
+        result = client.get(f"/jobs/{job_id}/result").json()
+    worker_pids = {p["ppid"] for p in result["parts"]}
+    assert len(worker_pids) == 2 and os.getpid() not in worker_pids
+    assert overlapping(result["parts"]) == 2
+    params = graph_kinds.FanParams(parts=4, part_s=0.0)
+    inline = run_inline(graph_kinds.graph(params), params, lambda f, m: None)
+    assert result["total"] == inline.total
+
+
+def test_without_a_scheduler_jobs_answer_503_and_the_rest_works(tmp_path):
+    import socket
+
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    settings = Settings(no_viewer=True, data_dir=tmp_path, jobs_backend=f"dask://127.0.0.1:{port}")
+    with TestClient(create_app(settings)) as client:
+        health = client.get("/health")
+        assert health.status_code == 503
+        jobs = health.json()["jobs"]
+        assert jobs["ok"] is False and jobs["running"] is True and jobs["workers"] == 0
+        assert f"tcp://127.0.0.1:{port} is unreachable" in jobs["error"]
+        r = client.post("/jobs", json={"kind": "echo", "params": {"value": 1}})
+        assert r.status_code == 503 and r.headers["retry-after"] == "5"
+        assert "unreachable" in r.json()["detail"][0]["msg"]
+        # Bad params are still named first.
+        r = client.post("/jobs", json={"kind": "echo", "params": {"nope": 1}})
+        assert r.status_code == 422
+        r = client.post("/robots/glt_palletizer/fk", json={"q": [0, 0, 0, 0, 0, 0]})
+        assert r.status_code == 200, r.text
+        assert client.get("/jobs").status_code == 200

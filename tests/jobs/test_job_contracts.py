@@ -202,11 +202,11 @@ def test_a_result_that_does_not_match_raises_naming_the_field(monkeypatch):
         execute("broken", {"params": {"value": 1}, "robot_model": None}, lambda f, m: None)
 
 
-def _child_main_with_broken(conn, kind, payload):
+def _child_main_with_broken(conn, kind, payload, *step):
     """Worker body that knows the ``broken`` kind (the forkserver imported only the
     catalog's kinds)."""
     KINDS.setdefault("broken", BROKEN)
-    _CHILD_MAIN(conn, kind, payload)
+    _CHILD_MAIN(conn, kind, payload, *step)
 
 
 def test_a_job_whose_result_does_not_match_fails_saying_where(tmp_path, monkeypatch):

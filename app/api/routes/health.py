@@ -58,15 +58,15 @@ def _jobs_health(jobs: JobManager) -> JobsHealth:
     if not backend.alive():
         return JobsHealth(ok=False, running=False,
                           error=f"the {backend.name} job supervisor has stopped")
-    client = getattr(backend, "client", None)  # the Dask backend's cluster client
-    status = getattr(client, "status", "running")
-    if status != "running":
-        return JobsHealth(ok=False, running=True,
-                          error=f"the connection to the Dask scheduler is {status}")
+    unavailable = jobs.unavailable()  # the Dask backend's scheduler out of reach
+    if unavailable is not None:
+        return JobsHealth(ok=False, running=True, workers=0, error=unavailable)
+    workers = backend.parallelism()
     if backend.failing is not None:
-        return JobsHealth(ok=False, running=True, error="the job supervisor's passes are "
-                          "failing and retried with back-off; see the service log")
-    return JobsHealth(ok=True, running=True)
+        return JobsHealth(ok=False, running=True, workers=workers, error="the job "
+                          "supervisor's passes are failing and retried with back-off; see "
+                          "the service log")
+    return JobsHealth(ok=True, running=True, workers=workers)
 
 
 @router.get("/health", response_model=Health,

@@ -19,12 +19,21 @@ from starlette.concurrency import run_in_threadpool
 from ...jobs.caps import MAX_PARAMS_BYTES, MAX_PARAMS_DEPTH, MAX_TIME_LIMIT_S
 from ...jobs.catalog import KINDS
 from ...jobs.kinds import error_text
-from ...jobs.manager import JobManager, JobParamsError, JobStateError, QueueFullError
+from ...jobs.manager import (
+    BackendUnavailable,
+    JobManager,
+    JobParamsError,
+    JobStateError,
+    QueueFullError,
+)
 from ..deps import RegistryDep, require_api_key
 from ..errors import http_error, not_found
 from ..schemas import Body, JobKindOut, JobRecordOut
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
+
+#: Seconds a client is told to wait (``Retry-After``) while the job cluster is unreachable.
+RETRY_AFTER_S = 5
 
 #: Jobs ``GET /jobs`` answers by default, and at most, per page.
 DEFAULT_PAGE = 100
@@ -64,7 +73,9 @@ JobId = Annotated[str, Path(description="Job id", max_length=64)]
              dependencies=[Depends(require_api_key)],
              responses={404: {"description": "Unknown robot in params"},
                         422: {"description": "Invalid kind or params"},
-                        429: {"description": "Queue full"}})
+                        429: {"description": "Queue full"},
+                        503: {"description": "The job cluster is unreachable; retry later "
+                              "(Retry-After)"}})
 def submit_job(body: JobRequest, jobs: ManagerDep, request: Request) -> dict:
     """Queue a job; its params are checked before it is queued."""
     settings = request.app.state.settings
@@ -76,6 +87,9 @@ def submit_job(body: JobRequest, jobs: ManagerDep, request: Request) -> dict:
         raise http_error(exc.status, ["body", *exc.loc], exc.message, kind) from None
     except QueueFullError as exc:
         raise http_error(429, ["body", "kind"], str(exc), "queue_full") from None
+    except BackendUnavailable as exc:
+        raise http_error(503, ["body"], str(exc), "unavailable",
+                         headers={"Retry-After": str(RETRY_AFTER_S)}) from None
     return job.to_dict()
 
 

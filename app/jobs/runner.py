@@ -1,0 +1,230 @@
+"""A child process that runs job steps for a Dask worker, so that a cancel can kill them.
+
+A Dask worker runs tasks on threads, and a thread cannot be stopped from outside: a cancelled
+step that does not check in would run on. So each step runs in a ``Runner``: a child process
+(``python -m app.jobs.runner``, started with ``subprocess`` because a Dask worker process is
+daemonic and may not fork ``multiprocessing`` children) that imports the job kinds once, then
+takes steps one at a time over a socket: ``run`` loads the job's params (kept for the next
+step of the same job), calls the step and sends back progress and its value. ``Runner.kill``
+ends the process at once (SIGKILL): its CPU is free the moment the cancel is seen, and the next
+step starts a fresh runner. A runner dies with the worker (Linux ``PR_SET_PDEATHSIG``, and a
+watchdog thread that exits when the worker is gone).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import pickle
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from multiprocessing.connection import Connection
+from typing import Any
+
+__all__ = ["Runner", "StepFailed", "StepCancelled", "take_runner", "give_back"]
+
+log = logging.getLogger(__name__)
+
+#: Least seconds between two progress messages of a step.
+PROGRESS_EVERY_S = 0.2
+#: Seconds a runner waits for a stop request between checks while a step runs.
+CHECK_EVERY_S = 0.2
+#: Seconds a new runner may take to import the job kinds and say it is ready.
+START_TIMEOUT_S = 120.0
+
+
+class StepFailed(RuntimeError):
+    """A step raised: the message is the step's ``Type: message``."""
+
+
+class StepCancelled(RuntimeError):
+    """The step was stopped because its job was cancelled or ran out of time."""
+
+
+class RunnerDied(RuntimeError):
+    """The runner process ended without an answer."""
+
+
+class Runner:
+    """One child process running steps; not thread-safe (one step at a time)."""
+
+    def __init__(self) -> None:
+        parent, child = socket.socketpair()
+        # The child sees the modules this process sees (as multiprocessing's spawn does).
+        env = dict(os.environ, PYTHONUNBUFFERED="1", KINOPLAN_RUNNER_PARENT=str(os.getpid()),
+                   PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "app.jobs.runner", str(child.fileno())],
+            pass_fds=[child.fileno()], env=env, stdin=subprocess.DEVNULL,
+        )
+        child.close()
+        self.conn = Connection(parent.detach())
+        self.loaded: str | None = None  # the job whose params the child holds
+        if not self.conn.poll(START_TIMEOUT_S):
+            self.kill()
+            raise RunnerDied(f"the step runner did not start within {START_TIMEOUT_S:g} s")
+        self._expect(self.conn.recv(), "ready")
+
+    @staticmethod
+    def _expect(msg: Any, tag: str) -> None:
+        if not (isinstance(msg, tuple) and msg and msg[0] == tag):
+            raise RunnerDied(f"the step runner answered {msg!r:.200}, expected {tag!r}")
+
+    def alive(self) -> bool:
+        return self.process.poll() is None
+
+    def kill(self) -> None:
+        """End the child now (SIGKILL) and reap it."""
+        try:
+            self.process.kill()
+        except OSError:
+            pass
+        try:
+            self.process.wait(5)
+        except subprocess.TimeoutExpired:  # pragma: no cover - a process SIGKILL left alive
+            log.warning("step runner %s did not exit after SIGKILL", self.process.pid)
+        self.conn.close()
+
+    def run(self, job_key: str, kind: str, payload: Any, fn: Callable, args: tuple,
+            final: bool, progress: Callable[[float, str], None],
+            should_stop: Callable[[], bool]) -> Any:
+        """Run one step in the child; its value (``final``: the result's JSON text).
+        ``progress`` gets the step's reports; ``should_stop()`` is asked every
+        ``CHECK_EVERY_S`` and, once true, the child is killed and ``StepCancelled`` raised.
+        ``StepFailed`` if the step raised, ``RunnerDied`` if the child died."""
+        send_payload = self.loaded != job_key
+        try:
+            self.conn.send(("run", job_key, kind, payload if send_payload else None, fn,
+                            args, final))
+        except (OSError, pickle.PicklingError) as exc:
+            self.kill()
+            raise RunnerDied(f"could not hand the step to its runner: {exc}") from None
+        self.loaded = job_key
+        while True:
+            try:
+                ready = self.conn.poll(CHECK_EVERY_S)
+                msg = self.conn.recv() if ready else None
+            except (EOFError, OSError):
+                code = self.process.wait()
+                raise RunnerDied(f"the step's process died (exit code {code})") from None
+            if msg is None:
+                if should_stop():
+                    self.kill()
+                    raise StepCancelled("cancelled")
+                continue
+            tag = msg[0]
+            if tag == "progress":
+                progress(msg[1], msg[2])
+                if should_stop():
+                    self.kill()
+                    raise StepCancelled("cancelled")
+            elif tag == "value":
+                return msg[1]
+            elif tag == "error":
+                self.loaded = None
+                raise StepFailed(msg[1])
+            elif tag == "cancelled":
+                raise StepCancelled("cancelled")
+            else:  # pragma: no cover - a protocol error
+                self.kill()
+                raise RunnerDied(f"unexpected message from the step runner: {tag!r}")
+
+
+def _die_with_parent(parent: int) -> None:
+    """In the child: SIGKILL when the thread that started it exits (Linux); exit now if
+    that happened already."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):  # not Linux: the watchdog thread is the fallback
+        pass
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+# ---- a pool of runners per worker process ----------------------------------------------
+_IDLE: list[Runner] = []
+_POOL_LOCK = threading.Lock()
+
+
+def take_runner() -> Runner:
+    """An idle live runner of this process, or a new one."""
+    with _POOL_LOCK:
+        while _IDLE:
+            runner = _IDLE.pop()
+            if runner.alive():
+                return runner
+            runner.kill()
+    return Runner()
+
+
+def give_back(runner: Runner) -> None:
+    """Return a runner that finished a step (a killed one is dropped)."""
+    if runner.alive():
+        with _POOL_LOCK:
+            _IDLE.append(runner)
+
+
+# ---- the child ------------------------------------------------------------------------
+def _watch_parent(parent: int) -> None:
+    while True:
+        time.sleep(0.5)
+        if os.getppid() != parent:
+            os._exit(1)
+
+
+def child_main(fd: int) -> None:
+    """The child's loop: take ``run`` messages until the socket closes."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C in a terminal is the worker's
+    parent = int(os.environ.get("KINOPLAN_RUNNER_PARENT", os.getppid()))
+    _die_with_parent(parent)
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    conn = Connection(fd)
+    from . import catalog  # noqa: F401 - every kind registered
+    from .kinds import JobCancelled, load_job
+
+    conn.send(("ready",))
+    loaded: tuple[str, Any, Any] | None = None
+    while True:
+        try:
+            msg = conn.recv()
+        except (EOFError, OSError):
+            return
+        _, job_key, kind_name, payload, fn, args, final = msg
+        last = [0.0]
+
+        def progress(fraction: float, message: str, last: list = last) -> None:
+            now = time.monotonic()
+            if now - last[0] >= PROGRESS_EVERY_S or fraction >= 1.0:
+                last[0] = now
+                conn.send(("progress", min(max(float(fraction), 0.0), 1.0),
+                           str(message)[:200]))
+
+        try:
+            if payload is not None or loaded is None or loaded[0] != job_key:
+                if payload is None:
+                    raise RuntimeError("the step runner lost the job's params")
+                kind, params = load_job(kind_name, payload)
+                loaded = (job_key, kind, params)
+            _, kind, params = loaded
+            value = fn(params, *args, progress)
+            conn.send(("value", kind.result_json(value) if final else value))
+        except JobCancelled:
+            conn.send(("cancelled",))
+        except BaseException as exc:  # noqa: BLE001 - everything a step raises is its failure
+            loaded = None
+            try:
+                conn.send(("error", f"{type(exc).__name__}: {exc}"))
+            except (OSError, pickle.PicklingError):
+                return
+
+
+if __name__ == "__main__":
+    child_main(int(sys.argv[1]))
