@@ -151,9 +151,10 @@ class DaskBackend(SupervisedBackend):
         self.deadline_s = float(deadline_s)
         self.client: Any = None
         self._jobs: dict[str, _Job] = {}
-        self._down_since: float = time.monotonic()
+        #: Since when no scheduler is connected (None while one is).
+        self._down_since: float | None = time.monotonic()
         self._next_try = 0.0
-        self._ever_connected = False
+        self._warned = False
         self._threads = 0
 
     # ---- state the service reads --------------------------------------------------------
@@ -161,9 +162,10 @@ class DaskBackend(SupervisedBackend):
         """Why jobs cannot be taken now (None: they can)."""
         if self.connected():
             return None
-        return (f"the Dask scheduler at {self.address} is unreachable (for "
-                f"{time.monotonic() - self._down_since:.0f} s); jobs are taken again once it "
-                "is back, the synchronous endpoints work meanwhile")
+        since = self._down_since
+        how_long = "" if since is None else f" (for {time.monotonic() - since:.0f} s)"
+        return (f"the Dask scheduler at {self.address} is unreachable{how_long}; jobs are "
+                "taken again once it is back, the synchronous endpoints work meanwhile")
 
     def connected(self) -> bool:
         client = self.client
@@ -189,11 +191,14 @@ class DaskBackend(SupervisedBackend):
         try:
             client = Client(self.address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
         except Exception as exc:  # noqa: BLE001 - unreachable, refused, TLS, ...
-            if self._ever_connected or now - self._down_since < 2 * RECONNECT_EVERY_S:
-                log.debug("Dask scheduler at %s unreachable: %s", self.address, exc)
+            if not self._warned:
+                log.warning("the Dask scheduler at %s is unreachable (%s: %s); trying again "
+                            "every %g s", self.address, type(exc).__name__, exc,
+                            RECONNECT_EVERY_S)
+                self._warned = True
             return False
-        down = time.monotonic() - self._down_since
-        self.client, self._ever_connected = client, True
+        down = time.monotonic() - (self._down_since or now)
+        self.client, self._down_since, self._warned = client, None, False
         log.warning("connected to the Dask scheduler at %s%s", self.address,
                     f" after {down:.1f} s without it" if self._jobs else "")
         for job in list(self._jobs.values()):
@@ -245,7 +250,7 @@ class DaskBackend(SupervisedBackend):
 
     def _outage(self) -> None:
         """Past the deadline without a scheduler: fail what waits for it."""
-        down = time.monotonic() - self._down_since
+        down = time.monotonic() - (self._down_since or time.monotonic())
         if down < self.deadline_s:
             return
         why = (f"the Dask scheduler at {self.address} was unreachable for {down:.0f} s "
@@ -283,6 +288,7 @@ class DaskBackend(SupervisedBackend):
         if again:
             job.generation += 1
             self.store.count_attempt(job.id, "re-submitted after the cluster was lost")
+            job.dirty = False  # the message just written is the news
         client = self.client
         key = job.key
         job.payload_future = client.submit(_payload, job.payload, key=f"kinoplan-{key}-payload",

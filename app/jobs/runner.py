@@ -16,17 +16,20 @@ from __future__ import annotations
 import logging
 import os
 import pickle
+import queue
 import signal
 import socket
 import subprocess
 import sys
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
+from concurrent.futures import Future
 from multiprocessing.connection import Connection
 from typing import Any
 
-__all__ = ["Runner", "StepFailed", "StepCancelled", "take_runner", "give_back"]
+__all__ = ["Runner", "StepFailed", "StepCancelled", "take_runner", "give_back", "prestart"]
 
 log = logging.getLogger(__name__)
 
@@ -150,26 +153,68 @@ def _die_with_parent(parent: int) -> None:
 
 
 # ---- a pool of runners per worker process ----------------------------------------------
-_IDLE: list[Runner] = []
+#: Runners waiting for a step: each a Future, done (idle) or still starting (prestarted).
+_POOL: deque[Future] = deque()
 _POOL_LOCK = threading.Lock()
+_REQUESTS: queue.SimpleQueue = queue.SimpleQueue()
+_FACTORY: list[threading.Thread] = []
+
+
+def _factory() -> None:
+    """Start runners on request. One long-lived thread starts them all, because a child's
+    ``PR_SET_PDEATHSIG`` fires when the *thread* that started it ends."""
+    while True:
+        done = _REQUESTS.get()
+        try:
+            runner = Runner()
+        except BaseException as exc:  # noqa: BLE001 - handed to whoever asked
+            done.set_exception(exc)
+        else:
+            done.set_result(runner)
+
+
+def _new_runner() -> Future:
+    with _POOL_LOCK:
+        if not _FACTORY:
+            thread = threading.Thread(target=_factory, name="kinoplan-runners", daemon=True)
+            thread.start()
+            _FACTORY.append(thread)
+    done: Future = Future()
+    _REQUESTS.put(done)
+    return done
 
 
 def take_runner() -> Runner:
-    """An idle live runner of this process, or a new one."""
-    with _POOL_LOCK:
-        while _IDLE:
-            runner = _IDLE.pop()
-            if runner.alive():
-                return runner
-            runner.kill()
-    return Runner()
+    """A live runner of this process: an idle one, one still starting, or a new one."""
+    while True:
+        with _POOL_LOCK:
+            pending = _POOL.popleft() if _POOL else None
+        if pending is None:
+            return _new_runner().result()
+        try:
+            runner = pending.result()
+        except Exception:  # noqa: BLE001 - a prestart that failed: try the next
+            continue
+        if runner.alive():
+            return runner
+        runner.kill()
 
 
 def give_back(runner: Runner) -> None:
     """Return a runner that finished a step (a killed one is dropped)."""
     if runner.alive():
+        done: Future = Future()
+        done.set_result(runner)
         with _POOL_LOCK:
-            _IDLE.append(runner)
+            _POOL.append(done)
+
+
+def prestart(count: int) -> None:
+    """Start ``count`` runners in the background for the steps to come (a worker's first
+    step then waits at most for the rest of a start already under way)."""
+    futures = [_new_runner() for _ in range(count)]
+    with _POOL_LOCK:
+        _POOL.extend(futures)
 
 
 # ---- the child ------------------------------------------------------------------------

@@ -259,8 +259,9 @@ def test_compose_services(compose, dockerfile):
     assert "test" in scheduler["healthcheck"]
 
     argv = service_argv(worker, image_argv)
-    assert argv[:3] == ["dask", "worker", "tcp://scheduler:8786"]
-    assert " ".join(argv[3:]).startswith("--nworkers 1 --nthreads 1")
+    # kinoplan's worker command: `dask worker` started again after a lost scheduler.
+    assert argv[:4] == ["python", "-m", "app.worker", "tcp://scheduler:8786"]
+    assert " ".join(argv[4:]).startswith("--nworkers 1 --nthreads 1")
     assert "ports" not in worker, "a scaled worker cannot publish fixed host ports"
     assert "scheduler" in worker["depends_on"]
     assert "volumes" not in worker and "volumes" not in scheduler
