@@ -155,6 +155,8 @@ class DaskBackend(SupervisedBackend):
         self._down_since: float | None = time.monotonic()
         self._next_try = 0.0
         self._warned = False
+        #: Lost clients still trying to reconnect on their own (closed by Dask, then dropped).
+        self._retired: list = []
         self._threads = 0
 
     # ---- state the service reads --------------------------------------------------------
@@ -216,10 +218,18 @@ class DaskBackend(SupervisedBackend):
             job.futures, job.payload_future = [], None
             job.message = "waiting for the Dask scheduler"
             job.dirty = True
-        threading.Thread(target=_close_quietly, args=(client,), daemon=True,
-                         name="kinoplan-dask-close").start()
+        if client.status == "connecting":
+            # Its own reconnection gives up after CONNECT_TIMEOUT_S and closes it; closing
+            # it now would only interrupt that with tracebacks in the log.
+            self._retired.append(client)
+        else:
+            threading.Thread(target=_close_quietly, args=(client,), daemon=True,
+                             name="kinoplan-dask-close").start()
+        self._retired = [c for c in self._retired if c.status != "closed"]
 
     def _shutdown(self) -> None:
+        for client in self._retired:
+            _close_quietly(client)
         if self.client is not None:
             for job in self._jobs.values():
                 self._signal_cancel(job)

@@ -121,9 +121,11 @@ class LocalBackend(SupervisedBackend):
         super().__init__(store, workers)
         self._ctx = multiprocessing.get_context("forkserver")
         # Workers fork from a server that has already imported what jobs use.
+        # "__main__": a child does not run the main script again (a service embedded in a
+        # user's script would otherwise re-run it before every step).
         self._ctx.set_forkserver_preload(
-            ["numpy", "scipy", "scipy.optimize", "scipy.interpolate", "scipy.sparse",
-             catalog.__name__]
+            ["__main__", "numpy", "scipy", "scipy.optimize", "scipy.interpolate",
+             "scipy.sparse", catalog.__name__, "app.jobs.warm_kernels"]
         )
         self._jobs: dict[str, _Job] = {}
         # Jobs claimed (marked running) whose steps could not be planned yet because the

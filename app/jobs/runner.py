@@ -232,7 +232,7 @@ def child_main(fd: int) -> None:
     _die_with_parent(parent)
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
     conn = Connection(fd)
-    from . import catalog  # noqa: F401 - every kind registered
+    from . import warm_kernels  # noqa: F401 - every kind registered, kernels loaded
     from .kinds import JobCancelled, load_job
 
     conn.send(("ready",))
