@@ -12,6 +12,13 @@ their bounded models (``planner_params``): every knob capped, 422 naming it.
 (``MultiarmParams.allocation()``), with the params' ``balance`` and ``counts``: what the check
 accepts is exactly what the run plans.
 
+``sequence`` with ``auto`` divides (``sequence_graph``): the search's runs (each from its own
+start hole and generator) are steps, and a last step makes the answer of them
+(``planning.sequencing.Auto.combine``): the order, length and history one process finds
+when the kick budget, the runs or stalls end the search. Each run has the time limit of its
+own (one process shares one among its runs); a run stopped by it ends the search, as the
+time limit does in one process, and makes the answer depend on the machine's speed.
+
 Importing this module readies the compiled sequencing search (``oropt.warm_up``: numba's
 cache loaded in about 0.2 s, or the search compiled, some 15-25 s, the first time on a
 machine), so no job pays for it: the local job backend's workers fork from a server that
@@ -20,6 +27,7 @@ imported this module.
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal
 
 import numpy as np
@@ -39,6 +47,7 @@ from planning.registry import algorithm_names
 
 from ..fields import Point3 as Vec3
 from ..fields import StrictModel
+from .graph import Ref, Step, run_inline
 from .kinds import MAX_SEED, XYZ, JobKind, Params, Progress, Result, absent_when_none, register
 from .planner_params import (
     MOVE_PLANNER_KNOBS,
@@ -49,7 +58,7 @@ from .planner_params import (
 )
 
 __all__ = ["SequenceParams", "SequenceResult", "MultiarmParams", "MultiarmResult",
-           "run_sequence", "run_multiarm", "SEQUENCER_READY_S"]
+           "run_sequence", "sequence_graph", "run_multiarm", "SEQUENCER_READY_S"]
 
 
 def _ready_sequencer() -> float:
@@ -189,8 +198,84 @@ class SequenceResult(Result):
         "Cost 'time': the arm's configuration at each hole, in drilling order (rad / mm)")
 
 
-def run_sequence(params: SequenceParams, progress: Progress) -> SequenceResult:
-    """Drilling order of the holes: an open path from ``start`` (or the first hole)."""
+def _auto_search(params: SequenceParams) -> tuple[Any, Any] | None:
+    """``(Auto, SequencingProblem)`` of a job whose ``auto`` search makes several runs
+    (cost 'distance', more holes than it solves exactly), else None."""
+    if params.cost != "distance" or params.algorithm != "auto":
+        return None
+    from planning.sequencing import SequencingProblem, make_sequencer
+
+    auto = make_sequencer("auto", params.params)
+    problem = SequencingProblem.from_holes(params.holes, params.start)
+    if auto.exact_for(problem) or auto.max_runs(problem.n) < 2:
+        return None
+    return auto, problem
+
+
+#: Share of the ``auto`` search's most runs that a sequence job starts at once; the others
+#: start once these are known (with the kicks they leave), or not at all when they end it.
+FIRST_RUNS_SHARE = 0.4
+
+
+def sequence_graph(params: SequenceParams) -> list[Step]:
+    """The steps of a sequence job: the ``auto`` search's runs (each from its own start hole
+    and generator, ``planning.sequencing.Auto.search_run``), a step each, as many as its
+    budgets allow: the first ``FIRST_RUNS_SHARE`` of them at once, the others after those
+    (skipped when the search ends before them); and a step that makes the answer of them
+    (``Auto.combine``: the order one process finds when the kick budget, the runs or stalls
+    end the search). Any other job in one step."""
+    search = _auto_search(params)
+    if search is None:
+        return [Step(run_sequence_whole)]
+    auto, problem = search
+    n, stall = problem.n, auto.stall_budget(problem.n)
+    runs = auto.max_runs(n)
+    first = min(runs, max(2, math.ceil(FIRST_RUNS_SHARE * runs)))
+    # a run stalls after one to a few stall budgets of kicks; a later one may not run; the
+    # last step may run one again
+    weights = [max(1, min(auto.run_cap(n, r), 2 * stall)) for r in range(runs)]
+    steps = [Step(sequence_run_step, (r,), weight=weights[r],
+                  label=f"run {r + 1} of at most {runs}") for r in range(first)]
+    steps += [Step(sequence_later_run_step, (r, [Ref(i) for i in range(first)]),
+                   weight=weights[r] / 2, label=f"run {r + 1} of at most {runs}")
+              for r in range(first, runs)]
+    steps.append(Step(sequence_result_step, ([Ref(r) for r in range(runs)],),
+                      weight=stall, label="shortest of the runs"))
+    return steps
+
+
+def sequence_run_step(params: SequenceParams, index: int, progress: Progress) -> Any:
+    """Run ``index`` of the ``auto`` search: a ``planning.sequencing.auto.SearchRun``."""
+    auto, problem = _auto_search(params)
+    return auto.search_run(problem, params.seed, index,
+                           progress=lambda f: progress(f, "searching"))
+
+
+def sequence_later_run_step(params: SequenceParams, index: int, earlier: list,
+                            progress: Progress) -> Any:
+    """Run ``index`` of the ``auto`` search with the kicks the ``earlier`` runs leave it,
+    or None when the search ends before it."""
+    auto, problem = _auto_search(params)
+    cap = auto.run_cap(problem.n, index, earlier)
+    if cap is None:
+        progress(1.0, "not needed")
+        return None
+    return auto.search_run(problem, params.seed, index, cap,
+                           progress=lambda f: progress(f, "searching"))
+
+
+def sequence_result_step(params: SequenceParams, runs: list, progress: Progress
+                         ) -> SequenceResult:
+    """The shortest order of the runs, as the ``auto`` search picks it."""
+    auto, problem = _auto_search(params)
+    res = auto.combine(problem, runs, params.seed, progress=lambda f: progress(f, "combining"))
+    progress(1.0, "done")
+    return _sequence_result(params, res)
+
+
+def run_sequence_whole(params: SequenceParams, progress: Progress) -> SequenceResult:
+    """Drilling order of the holes in one step: an open path from ``start`` (or the first
+    hole)."""
     if params.cost == "time":
         return _run_sequence_by_time(params, progress)
     from planning.sequencing import sequence_holes
@@ -198,6 +283,10 @@ def run_sequence(params: SequenceParams, progress: Progress) -> SequenceResult:
     res = sequence_holes(params.holes, params.start, params.algorithm, params.seed,
                          params.params, progress=lambda f: progress(0.99 * f, "sequencing"))
     progress(1.0, "done")
+    return _sequence_result(params, res)
+
+
+def _sequence_result(params: SequenceParams, res: Any) -> SequenceResult:
     return SequenceResult(
         order=res.order.tolist(),
         length=res.length,
@@ -210,6 +299,12 @@ def run_sequence(params: SequenceParams, progress: Progress) -> SequenceResult:
         message=res.message,
         seed=params.seed,
     )
+
+
+def run_sequence(params: SequenceParams, progress: Progress) -> SequenceResult:
+    """Drilling order of the holes: an open path from ``start`` (or the first hole); see
+    ``sequence_graph``."""
+    return run_inline(sequence_graph(params), params, progress)
 
 
 def _run_sequence_by_time(params: SequenceParams, progress: Progress) -> SequenceResult:
@@ -253,7 +348,7 @@ def _run_sequence_by_time(params: SequenceParams, progress: Progress) -> Sequenc
 
 register(JobKind("sequence", SequenceParams, SequenceResult, run_sequence,
                  "Drilling order of a face's holes (open path, IGA / ACO / AGA / auto), by "
-                 "tool path or by boom travel time"))
+                 "tool path or by boom travel time", graph=sequence_graph))
 
 
 # ---- multiarm --------------------------------------------------------------------------------

@@ -390,20 +390,103 @@ class WorkspaceResult(Result):
         "Occupancy images 'xy', 'xz', 'yz' (absent unless asked for)")
 
 
-def run_workspace(params: WorkspaceParams, progress: Progress) -> WorkspaceResult:
-    """Monte Carlo workspace of a robot; the answer of POST /robots/{id}/workspace."""
-    from kinematics.workspace import sample_workspace, workspace_report
+#: Work of a sample in the second pass relative to the first (FK and extents), with and
+#: without the projection counts (measured on a six-joint arm).
+_WS_PASS2, _WS_PASS2_BARE = 1.6, 0.9
+#: Work of merging the extents (choosing the returned samples), of the final assembly and
+#: of each returned point in it, as samples' worth of the first pass.
+_WS_MERGE, _WS_FINAL, _WS_POINT = 50_000, 300_000, 7
 
-    model = params.robot_model()
-    ws = sample_workspace(
-        model, params.samples, seed=params.seed, voxel=params.voxel,
-        progress=lambda f: progress(0.95 * f, "sampling"), max_samples=math.inf,
-    )
-    report = workspace_report(ws, params.return_points, params.projections)
-    out = WorkspaceResult(robot=model.id, **pick(WorkspaceResult, report))
+
+def workspace_graph(params: WorkspaceParams) -> list[Step]:
+    """The steps of a workspace job: one when it fits in one part
+    (``kinematics.workspace.PART`` samples); else per part the extents, a merge (voxel,
+    returned samples), per part the cells, projection counts and returned points, and the
+    result (``kinematics.workspace``'s passes)."""
+    from kinematics.workspace import part_count, part_range
+
+    from .graph import Ref
+
+    n = part_count(params.samples)
+    if n == 1:
+        return [Step(workspace_whole)]
+    sizes = [b - a for a, b in (part_range(params.samples, k) for k in range(n))]
+    pass2 = _WS_PASS2 if params.projections else _WS_PASS2_BARE
+    steps = [Step(workspace_bounds_step, (k,), weight=sizes[k], label=f"part {k + 1} of {n}")
+             for k in range(n)]
+    steps.append(Step(workspace_grid_step, ([Ref(k) for k in range(n)],), weight=_WS_MERGE,
+                      label="extents"))
+    steps += [Step(workspace_cells_step, (k, Ref(n)), weight=pass2 * sizes[k],
+                   label=f"part {k + 1} of {n}, cells") for k in range(n)]
+    final = _WS_FINAL + _WS_POINT * min(params.return_points, params.samples)
+    steps.append(Step(workspace_result_step, (Ref(n), [Ref(n + 1 + k) for k in range(n)]),
+                      weight=final, label="volume"))
+    return steps
+
+
+def workspace_whole(params: WorkspaceParams, progress: Progress) -> WorkspaceResult:
+    """A workspace of one part in one step: ``sample_workspace``, as the synchronous
+    endpoint answers."""
+    from kinematics.workspace import sample_workspace
+
+    ws = sample_workspace(params.robot_model(), params.samples, seed=params.seed,
+                          voxel=params.voxel, return_points=params.return_points,
+                          projections=params.projections,
+                          progress=lambda f: progress(f, "sampling"), max_samples=math.inf)
+    return _workspace_result(params, ws)
+
+
+def workspace_bounds_step(params: WorkspaceParams, index: int, progress: Progress) -> Any:
+    """Pass 1 of part ``index``: ``kinematics.workspace.PartBounds``."""
+    from kinematics.workspace import part_bounds
+
+    return part_bounds(params.robot_model(), params.samples, params.seed, index,
+                       progress=lambda f: progress(f, "extents"))
+
+
+def workspace_grid_step(params: WorkspaceParams, bounds: list, progress: Progress) -> Any:
+    """The parts' extents merged: ``kinematics.workspace.WorkspaceGrid``."""
+    from kinematics.workspace import workspace_grid
+
+    grid = workspace_grid(bounds, params.samples, params.seed, params.voxel,
+                          params.return_points)
+    progress(1.0, "merged")
+    return grid
+
+
+def workspace_cells_step(params: WorkspaceParams, index: int, grid: Any,
+                         progress: Progress) -> Any:
+    """Pass 2 of part ``index``: ``kinematics.workspace.PartCells``."""
+    from kinematics.workspace import part_cells
+
+    return part_cells(params.robot_model(), grid, index, params.projections,
+                      progress=lambda f: progress(f, "cells"))
+
+
+def workspace_result_step(params: WorkspaceParams, grid: Any, cells: list,
+                          progress: Progress) -> WorkspaceResult:
+    """The volume (union of the parts' voxels), the projections summed, the points."""
+    from kinematics.workspace import assemble
+
+    out = _workspace_result(params, assemble(grid, cells, params.projections))
     progress(1.0, "done")
     return out
 
 
+def _workspace_result(params: WorkspaceParams, ws: Any) -> WorkspaceResult:
+    from kinematics.workspace import workspace_report
+
+    report = workspace_report(ws, params.return_points, params.projections)
+    return WorkspaceResult(robot=params.robot_model().id, **pick(WorkspaceResult, report))
+
+
+def run_workspace(params: WorkspaceParams, progress: Progress) -> WorkspaceResult:
+    """Monte Carlo workspace of a robot; the answer of POST /robots/{id}/workspace (the same
+    figures for the same seed, however many parts it is computed in, and where)."""
+    from .graph import run_inline
+
+    return run_inline(workspace_graph(params), params, progress)
+
+
 register(JobKind("workspace", WorkspaceParams, WorkspaceResult, run_workspace,
-                 "Monte Carlo workspace (large N)", needs_robot=True))
+                 "Monte Carlo workspace (large N)", needs_robot=True, graph=workspace_graph))

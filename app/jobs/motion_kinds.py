@@ -15,6 +15,14 @@ robot's model, not the service's store: built-in and JSON robots plan with the c
 model built from the model (a capsule per link); for an imported robot the job's payload
 carries its description, its stored collision model and its collision meshes
 (``JobPayload.robot_files``), rebuilt once per worker process.
+
+A batch of more than ``MOTION_PART_PROBLEMS`` problems divides (``motion_graph``): that many
+problems per step, each step planning them in turn with a checker of its own, and a step
+that gathers them and sums them up. A plan depends on the problem, its seed and the shared
+settings, not on what the checker planned before, so the answer is the one of a single
+checker, except where planning is timed: the measured times always, and a problem that the
+search solves only near its time limit (or not at all) or, with ``auto`` and a time limit
+past 10 s, the RRT* refinement (these depend on the machine's speed in one process too).
 """
 
 from __future__ import annotations
@@ -48,6 +56,7 @@ from planning.motion.request import (
 
 from ..fields import JointVector, StrictModel, bounded_list, pose_type
 from .caps import ParamsLimitError
+from .graph import Ref, Step, run_inline
 from .kinds import MAX_SEED, JobKind, Params, Progress, Result, pick, register
 
 __all__ = [
@@ -67,6 +76,8 @@ __all__ = [
     "summarize",
     "prepare_motion",
     "run_motion",
+    "motion_graph",
+    "MOTION_PART_PROBLEMS",
 ]
 
 #: The planners (``planning.motion.PLANNERS``).
@@ -338,8 +349,36 @@ def summarize(results: list[dict[str, Any]]) -> dict[str, Any]:
             "median_length": statistics.median(lengths) if lengths else None}
 
 
-def run_motion(params: MotionParams, progress: Progress) -> Any:
-    """Plan each problem in turn with one checker (same robot, scene and settings)."""
+#: Problems of a batch per step of a motion job (each step builds its checker once).
+MOTION_PART_PROBLEMS = 8
+
+
+def motion_parts(params: MotionParams) -> list[tuple[int, int]]:
+    """The job's parts: ``(first problem, end problem)``, ``MOTION_PART_PROBLEMS`` each."""
+    n = 1 if params.problems is None else len(params.problems)
+    return [(i, min(n, i + MOTION_PART_PROBLEMS)) for i in range(0, n, MOTION_PART_PROBLEMS)]
+
+
+def motion_graph(params: MotionParams) -> list[Step]:
+    """The steps of a motion job: one problem, or a batch of up to ``MOTION_PART_PROBLEMS``,
+    in one step; a larger batch ``MOTION_PART_PROBLEMS`` problems per step (each problem's
+    plan depends on its own seed, not on the problems planned before it with the same
+    checker), and a step summing them up."""
+    parts = motion_parts(params)
+    if len(parts) == 1:
+        return [Step(motion_whole)]
+    n = parts[-1][1]
+    steps = [Step(motion_part, (a, b), weight=b - a, label=f"problems {a + 1}-{b} of {n}")
+             for a, b in parts]
+    steps.append(Step(motion_result, ([Ref(i) for i in range(len(parts))],), weight=0.01,
+                      label="summary"))
+    return steps
+
+
+def _plan(params: MotionParams, first: int, end: int, progress: Progress
+          ) -> list[dict[str, Any]]:
+    """``MotionOut`` dicts of problems ``first..end-1``, planned in turn with one checker (the
+    batch's settings, the same for every problem)."""
     from planning.collision import RobotCollisionModel
 
     model = params.robot_model()
@@ -348,7 +387,7 @@ def run_motion(params: MotionParams, progress: Progress) -> Any:
                          "submitted to the service; give the scene inline here")
     requests = params.requests(model)
     names = [j.name for j in model.joints]
-    n = len(requests)
+    n, total = end - first, len(requests)
     progress(0.0, "building the collision model")
     imported = params.imported()
     cm = imported[1] if imported is not None else RobotCollisionModel.from_model(model)
@@ -356,19 +395,50 @@ def run_motion(params: MotionParams, progress: Progress) -> Any:
     warm_up(requests[0], cm, scene)
     checker = requests[0].checker(cm, scene)
     results = []
-    for i, req in enumerate(requests):
-        what = f"problem {i + 1} of {n}" if n > 1 else "planning"
+    for k in range(n):
+        i = first + k
+        what = f"problem {i + 1} of {total}" if total > 1 else "planning"
 
-        def report(fraction: float, *_: Any, i: int = i, what: str = what) -> None:
-            progress(min(max((i + float(fraction)) / n, 0.0), 1.0) * 0.99, what)
+        def report(fraction: float, *_: Any, k: int = k, what: str = what) -> None:
+            progress(min(max((k + float(fraction)) / n, 0.0), 1.0) * 0.99, what)
 
         report(0.0)
-        results.append(motion_answer(req.plan(checker, model, report), names))
+        results.append(motion_answer(requests[i].plan(checker, model, report), names))
+    return results
+
+
+def motion_part(params: MotionParams, first: int, end: int, progress: Progress
+                ) -> list[dict[str, Any]]:
+    """Problems ``first..end-1`` of a batch: their ``MotionOut`` dicts."""
+    out = _plan(params, first, end, progress)
+    progress(1.0, "planned")
+    return out
+
+
+def motion_result(params: MotionParams, parts: list, progress: Progress) -> Any:
+    """The batch's result: every part's problems, in order, and their summary."""
+    results = [r for part in parts for r in part]
+    model = params.robot_model()
     progress(1.0, "done")
-    head = {"robot": model.id, "joints": names}
+    return MotionJobResult(robot=model.id, joints=[j.name for j in model.joints],
+                           problems=results, summary=summarize(results))
+
+
+def motion_whole(params: MotionParams, progress: Progress) -> Any:
+    """One problem, or a small batch, in one step."""
+    n = 1 if params.problems is None else len(params.problems)
+    results = _plan(params, 0, n, progress)
+    progress(1.0, "done")
+    model = params.robot_model()
+    head = {"robot": model.id, "joints": [j.name for j in model.joints]}
     if params.problems is None:
         return MotionJobResult(**head, **results[0])
     return MotionJobResult(**head, problems=results, summary=summarize(results))
+
+
+def run_motion(params: MotionParams, progress: Progress) -> Any:
+    """Plan each problem with one checker per part of the batch (``motion_graph``)."""
+    return run_inline(motion_graph(params), params, progress)
 
 
 # ---- submission --------------------------------------------------------------------------
@@ -437,4 +507,4 @@ def prepare_motion(params: dict[str, Any], scenes: Any, registry: Any) -> dict[s
 register(JobKind("motion", MotionParams, MotionJobResult, run_motion,
                  "Joint-space motion planning in a scene (RRT-Connect / RRT*), one problem "
                  "or a batch, every path verified", needs_robot=True,
-                 max_params_bytes=MAX_MOTION_PARAMS_BYTES))
+                 max_params_bytes=MAX_MOTION_PARAMS_BYTES, graph=motion_graph))

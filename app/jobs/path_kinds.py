@@ -25,6 +25,10 @@ share one ``planning.paths.scene.Scene``.
 Planner ``params`` are free-form in the contract but checked against the planner's bounded
 model (``planner_params``): every knob capped, and one batch of obstacle checks within
 ``MAX_BATCH_BYTES`` of memory.
+
+``path_compare`` divides (``path_compare_graph``): a few seeds of one algorithm per step
+(``compare_parts``; each run depends on its seed alone) and a step making the rows of their
+outcomes, in seed order, as ``planning.paths.compare.compare_planners`` does.
 """
 
 from __future__ import annotations
@@ -49,6 +53,7 @@ from planning.registry import algorithm_names
 
 from ..fields import MAX_COORDINATE_MM, JointVector, StrictModel
 from ..fields import Point3 as Vec3
+from .graph import Ref, Step, run_inline
 from .kinds import (
     MAX_SEED,
     XYZ,
@@ -63,7 +68,7 @@ from .kinds import (
 from .planner_params import PATH_KNOBS, check_batch_memory, knobs_schema, path_knobs
 
 __all__ = ["PathParams", "PathResult", "PathCompareParams", "PathCompareResult", "run_path",
-           "run_path_compare"]
+           "run_path_compare", "path_compare_graph", "compare_parts"]
 
 #: The path planners: the ``path`` family of ``planning.registry``.
 Algorithm = Literal[algorithm_names("path")]  # type: ignore[valid-type]
@@ -528,20 +533,97 @@ class PathCompareResult(Result):
     runs: int
 
 
-def run_path_compare(params: PathCompareParams, progress: Progress) -> PathCompareResult:
-    """Every algorithm over ``runs`` seeds: rows of best/mean length, mean time, successes."""
+#: Seconds of one run of each planner with its default parameters (paper 000's toy scene,
+#: one core): what a step of a path_compare job weighs, and how many runs it takes.
+RUN_SECONDS = {"wolfpack_improved": 1.9, "wolfpack": 3.7, "ga": 0.03, "aca": 0.4,
+               "afsa": 1.4, "rrt_star": 1.0, "auto": 0.3}
+#: A step of a path_compare job takes about this many seconds of runs of one algorithm ...
+COMPARE_PART_SECONDS = 4.0
+#: ... and at most this many runs.
+COMPARE_PART_RUNS = 10
+
+
+def compare_part_runs(algorithm: str) -> int:
+    """Runs of ``algorithm`` per step: ``COMPARE_PART_SECONDS`` of them, 1 to
+    ``COMPARE_PART_RUNS``."""
+    seconds = RUN_SECONDS.get(algorithm, 1.0)
+    return max(1, min(COMPARE_PART_RUNS, int(COMPARE_PART_SECONDS / seconds + 1e-9)))
+
+
+def compare_parts(params: PathCompareParams) -> list[tuple[str, int, int]]:
+    """The job's parts: ``(algorithm, first run, end run)`` by algorithm in order, each
+    ``compare_part_runs(algorithm)`` runs (the last of an algorithm fewer)."""
+    out = []
+    for a in params.algorithms:
+        size = compare_part_runs(a)
+        out += [(a, r, min(params.runs, r + size)) for r in range(0, params.runs, size)]
+    return out
+
+
+def path_compare_graph(params: PathCompareParams) -> list[Step]:
+    """The steps of a path_compare job: one algorithm's runs a few seeds at a time
+    (``compare_parts``; one step when that is all), and a step making the rows."""
+    parts = compare_parts(params)
+    if len(parts) == 1:
+        return [Step(run_path_compare_whole)]
+    steps = [Step(path_compare_part, (a, r0, r1), weight=(r1 - r0) * RUN_SECONDS.get(a, 1.0),
+                  label=f"{a}, runs {r0 + 1}-{r1}") for a, r0, r1 in parts]
+    steps.append(Step(path_compare_result, ([Ref(i) for i in range(len(parts))],),
+                      weight=0.01, label="rows"))
+    return steps
+
+
+def path_compare_part(params: PathCompareParams, algorithm: str, first: int, end: int,
+                      progress: Progress) -> list:
+    """Runs ``first..end-1`` (seeds ``seed + r``) of ``algorithm``:
+    ``planning.paths.compare.RunOutcome``\\ s."""
+    from planning.paths.compare import check_compare, compare_runs
+
+    check_compare(params.algorithms, params.runs, params.params)
+    return compare_runs(params.scene.to_scene(), params.start, params.goal, algorithm,
+                        [params.seed + r for r in range(first, end)],
+                        (params.params or {}).get(algorithm),
+                        lambda f: progress(f, "planning"))
+
+
+def path_compare_result(params: PathCompareParams, outcomes: list,
+                        progress: Progress) -> PathCompareResult:
+    """The rows of the parts' outcomes (``compare_parts``' order)."""
+    from planning.paths.compare import compare_row
+
+    runs: dict[str, list] = {a: [] for a in params.algorithms}
+    for (a, _, _), part in zip(compare_parts(params), outcomes, strict=True):
+        runs[a].extend(part)
+    rows = [compare_row(a, runs[a]) for a in params.algorithms]
+    progress(1.0, "done")
+    return _compare_result(params, rows)
+
+
+def run_path_compare_whole(params: PathCompareParams, progress: Progress) -> PathCompareResult:
+    """Every algorithm over ``runs`` seeds in one step (``compare_planners``)."""
     from planning.paths.compare import compare_planners
 
     rows = compare_planners(params.scene.to_scene(), params.start, params.goal,
                             params.algorithms, params.runs, params.seed, params.params,
                             lambda f: progress(0.99 * f, "comparing"))
     progress(1.0, "done")
+    return _compare_result(params, rows)
+
+
+def _compare_result(params: PathCompareParams, rows: list) -> PathCompareResult:
     return PathCompareResult(rows=[CompareRow(**pick(CompareRow, r.to_dict())) for r in rows],
                              runs=params.runs)
+
+
+def run_path_compare(params: PathCompareParams, progress: Progress) -> PathCompareResult:
+    """Every algorithm over ``runs`` seeds: rows of best/mean length, mean time, successes
+    (``path_compare_graph``: the same rows however the runs are spread over workers)."""
+    return run_inline(path_compare_graph(params), params, progress)
 
 
 register(JobKind("path", PathParams, PathResult, run_path,
                  "Obstacle-avoiding path (paper 000's planners); optional robot tool path "
                  "with whole-arm clearance, joint trajectory and cylinder lengths"))
 register(JobKind("path_compare", PathCompareParams, PathCompareResult, run_path_compare,
-                 "Every path planner over many seeds (paper 000, Tables 3-4)"))
+                 "Every path planner over many seeds (paper 000, Tables 3-4)",
+                 graph=path_compare_graph))

@@ -18,6 +18,9 @@ tool position per step), ``errors`` (per step, their distance), ``joint_speed_ma
 best run's. ``TrackingResult`` types every field.
 
 Plot (``GET /jobs/{id}/plot``): ``plot_tracking``, paper 003's Figure 7.
+
+Several runs divide (``tracking_graph``): each run's tuning is a step (it depends on its seed
+alone), and a last step simulates every run's gains and answers, as one process would.
 """
 
 from __future__ import annotations
@@ -29,14 +32,15 @@ from pydantic import Field, model_validator
 from planning.registry import algorithm_names
 
 from ..fields import Coordinate, JointValue
+from .graph import Ref, Step, run_inline
 from .kinds import MAX_SEED, XYZ, JobKind, Params, Progress, Result, absent_when_none, register
 
 if TYPE_CHECKING:
     from kinematics.model import RobotModel
     from planning.tracking import EllipseTask, GainBounds, LineTask, PIGains
 
-__all__ = ["TrackingParams", "TrackingResult", "run_tracking", "plot_tracking", "MAX_RUNS",
-           "MAX_TUNING_WORK"]
+__all__ = ["TrackingParams", "TrackingResult", "run_tracking", "tracking_graph", "plot_tracking",
+           "MAX_RUNS", "MAX_TUNING_WORK"]
 
 #: Most runs one job may ask for (the paper's 30).
 MAX_RUNS = 30
@@ -214,45 +218,66 @@ class TrackingResult(Result):
     summary: TrackingSummary | None = absent_when_none("Over the runs, when runs > 1")
 
 
-def run_tracking(params: TrackingParams, progress: Progress) -> TrackingResult:
-    """Simulate (and optionally tune) a tracking task; see the module docstring."""
+def tracking_graph(params: TrackingParams) -> list[Step]:
+    """The steps of a tracking job: one run in one step; several runs (each tuned with its
+    own seed, ``seed + r``) a step each, and a step that simulates them all and answers."""
+    if params.runs == 1:
+        return [Step(tracking_whole)]
+    # a run's tuning simulates its population (iterations + 1) times; the last step
+    # simulates the runs once, about one tuner iteration's work
+    iterations = params.iterations or DEFAULT_TUNER_ITERATIONS
+    steps = [Step(tracking_run_step, (r,), weight=iterations + 1,
+                  label=f"run {r + 1} of {params.runs}") for r in range(params.runs)]
+    steps.append(Step(tracking_result_step, ([Ref(r) for r in range(params.runs)],),
+                      weight=1.0, label="simulating the runs"))
+    return steps
+
+
+def tracking_run_step(params: TrackingParams, run: int, progress: Progress) -> tuple:
+    """Run ``run``'s gains: ``(seed, PIGains, fitness history)``, tuned with seed
+    ``params.seed + run`` (the fixed gains without ``tune``)."""
+    seed = params.seed + run
+    if params.tune is None:
+        progress(1.0, "fixed gains")
+        return seed, params.controller.gains(), []
+    from planning.tracking import TrackingConfig, tune_gains
+
+    config = TrackingConfig(dt=params.dt, q0=None if params.q0 is None else tuple(params.q0))
+    tuned = tune_gains(params.robot_model(), params.task.to_task(), params.tune, seed,
+                       controller=params.controller.kind, config=config,
+                       bounds=params.bounds.to_bounds(), iterations=params.iterations,
+                       progress=lambda f: progress(f, f"tuning ({params.tune})"))
+    return seed, tuned.gains, tuned.optim.history.tolist()
+
+
+def tracking_whole(params: TrackingParams, progress: Progress) -> TrackingResult:
+    """A tracking job of one run in one step."""
+    run = tracking_run_step(params, 0, lambda f, m: progress(0.95 * f, m))
+    return tracking_result_step(params, [run], lambda f, m: progress(0.95 + 0.05 * f, m))
+
+
+def tracking_result_step(params: TrackingParams, per_run: list, progress: Progress
+                         ) -> TrackingResult:
+    """Simulate every run's gains (``tracking_run_step``'s, in run order) and answer with
+    the best run's trajectory, and the runs' statistics when there are several."""
     import numpy as np
 
-    from planning.tracking import TrackingConfig, simulate, tune_gains
+    from planning.tracking import TrackingConfig, simulate
 
     model = params.robot_model()
-    task = params.task.to_task()
     ctrl = params.controller.kind
     config = TrackingConfig(dt=params.dt, q0=None if params.q0 is None else tuple(params.q0))
-    bounds = params.bounds.to_bounds()
-    fixed = params.controller.gains()
-    runs, tuner = params.runs, params.tune
-
-    per_run, histories = [], []
-    for r in range(runs):
-        seed = params.seed + r
-        if tuner is None:
-            gains = fixed
-        else:
-            def sub(f: float, r: int = r) -> None:
-                progress(0.95 * (r + f) / runs, f"run {r + 1} of {runs}: tuning ({tuner})")
-
-            tuned = tune_gains(model, task, tuner, seed, controller=ctrl, config=config,
-                               bounds=bounds, iterations=params.iterations, progress=sub)
-            gains = tuned.gains
-            histories.append(tuned.optim.history.tolist())
-        per_run.append((seed, gains))
-        progress(0.95 * (r + 1) / runs, f"run {r + 1} of {runs} done")
-
-    sim = simulate(model, task, [g for _, g in per_run], controller=ctrl, config=config)
+    histories = [h for _, _, h in per_run]
+    sim = simulate(model, params.task.to_task(), [g for _, g, _ in per_run], controller=ctrl,
+                   config=config)
     best = int(np.argmin(sim.mean_error))
-    seed_best, g_best = per_run[best]
-    several = runs > 1
+    seed_best, g_best, _ = per_run[best]
+    several = len(per_run) > 1
     out = TrackingResult(
         robot=model.id,
         task=params.task,
         controller=ctrl,
-        tune=tuner,
+        tune=params.tune,
         mean_error=float(sim.mean_error[best]),
         max_error=float(sim.max_error[best]),
         std_error=float(sim.std_error[best]),
@@ -266,11 +291,11 @@ def run_tracking(params: TrackingParams, progress: Progress) -> TrackingResult:
         errors=sim.error[best].tolist(),
         joint_speed_max=float(sim.joint_speed_max[best]),
         saturated_steps=int(sim.saturated_steps[best]),
-        fitness_history=histories[best] if histories else [],
+        fitness_history=histories[best] if params.tune is not None else [],
         runs=[
             TrackingRun(seed=s, kp=list(g.kp), ki=g.ki, mean_error=float(sim.mean_error[i]),
                         max_error=float(sim.max_error[i]), std_error=float(sim.std_error[i]))
-            for i, (s, g) in enumerate(per_run)
+            for i, (s, g, _) in enumerate(per_run)
         ] if several else None,
         summary=TrackingSummary(
             max=float(sim.max_error.max()),
@@ -281,6 +306,13 @@ def run_tracking(params: TrackingParams, progress: Progress) -> TrackingResult:
     )
     progress(1.0, "done")
     return out
+
+
+def run_tracking(params: TrackingParams, progress: Progress) -> TrackingResult:
+    """Simulate (and optionally tune) a tracking task; see the module docstring. Several
+    runs are tuned independently (``tracking_graph``): the same answer however they are
+    spread over workers."""
+    return run_inline(tracking_graph(params), params, progress)
 
 
 def plot_tracking(params: TrackingParams, result: TrackingResult,
@@ -303,4 +335,4 @@ def plot_tracking(params: TrackingParams, result: TrackingResult,
 
 register(JobKind("tracking", TrackingParams, TrackingResult, run_tracking,
                  "PI resolved-rate tool tracking; gains optionally tuned (paper 003)",
-                 needs_robot=True, plot=plot_tracking))
+                 needs_robot=True, plot=plot_tracking, graph=tracking_graph))

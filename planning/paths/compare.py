@@ -19,10 +19,11 @@ import numpy as np
 from kinematics.errors import FieldError
 from kinematics.numbers import finite_or_none
 
-from .planners import ALGORITHMS, PathResult, plan_path
+from .planners import ALGORITHMS, plan_path
 from .scene import Scene
 
-__all__ = ["CompareRow", "compare_planners", "toy_scene", "TOY_START", "TOY_GOAL"]
+__all__ = ["CompareRow", "RunOutcome", "compare_planners", "compare_runs", "compare_row",
+           "check_compare", "toy_scene", "TOY_START", "TOY_GOAL"]
 
 
 #: Start and goal (mm) of the toy scenes: opposite corners of a 100 mm cube.
@@ -62,6 +63,65 @@ class CompareRow:
                 for k, v in asdict(self).items()}
 
 
+@dataclass(frozen=True)
+class RunOutcome:
+    """What a row needs of one planner run: success, lengths (mm), time (s), evaluations."""
+
+    success: bool
+    length: float
+    raw_length: float
+    runtime_s: float
+    evaluations: int
+
+
+def check_compare(algorithms: Sequence[str], runs: int,
+                  params: dict[str, dict[str, Any]] | None) -> None:
+    """``FieldError`` naming ``runs``, ``algorithms`` or ``params.<algorithm>``."""
+    if runs < 1:
+        raise FieldError("runs", "runs must be at least 1")
+    for k, a in enumerate(algorithms):
+        if a not in ALGORITHMS:
+            raise FieldError(("algorithms", k), f"algorithms: unknown algorithm {a!r}; known: "
+                             f"{', '.join(ALGORITHMS)}")
+    unknown = sorted(set(params or {}) - set(algorithms))
+    if unknown:
+        raise FieldError(("params", unknown[0]),
+                         f"params.{unknown[0]} names no algorithm being compared")
+
+
+def compare_runs(scene: Scene, start, goal, algorithm: str, seeds: Sequence[int],
+                 params: dict[str, Any] | None = None,
+                 progress: Callable[[float], None] | None = None) -> list[RunOutcome]:
+    """``algorithm`` planned once per seed of ``seeds``, in order (``params`` as for
+    ``plan_path``). A run depends on its seed alone, so runs may be split among processes;
+    ``progress(fraction)`` after each."""
+    out = []
+    for i, s in enumerate(seeds):
+        x = plan_path(scene, start, goal, algorithm, s, params)
+        out.append(RunOutcome(bool(x.success), float(x.length), float(x.raw_length),
+                              float(x.runtime_s), int(x.evaluations)))
+        if progress is not None:
+            progress((i + 1) / len(seeds))
+    return out
+
+
+def compare_row(algorithm: str, outcomes: Sequence[RunOutcome]) -> CompareRow:
+    """The row of ``algorithm`` over its runs' outcomes (in seed order): best and mean
+    length and mean raw length over the successful runs (NaN without one), mean time and
+    mean evaluations over all."""
+    ok = [x for x in outcomes if x.success]
+    lengths = np.array([x.length for x in ok])
+    raw = np.array([x.raw_length for x in ok])
+    return CompareRow(
+        algorithm=algorithm, runs=len(outcomes), successes=len(ok),
+        best_length=float(lengths.min()) if len(ok) else math.nan,
+        mean_length=float(lengths.mean()) if len(ok) else math.nan,
+        mean_raw_length=float(raw.mean()) if len(ok) else math.nan,
+        mean_time_s=float(np.mean([x.runtime_s for x in outcomes])),
+        mean_evaluations=float(np.mean([x.evaluations for x in outcomes])),
+    )
+
+
 def compare_planners(
     scene: Scene,
     start,
@@ -72,40 +132,21 @@ def compare_planners(
     params: dict[str, dict[str, Any]] | None = None,
     progress: Callable[[float], None] | None = None,
 ) -> list[CompareRow]:
-    """Plan with every algorithm for ``runs`` seeds; one row per algorithm, in order.
+    """Plan with every algorithm for ``runs`` seeds; one row per algorithm, in order
+    (``compare_runs`` then ``compare_row`` for each).
 
     ``params`` maps an algorithm to its parameters (as for ``plan_path``). ``FieldError``
     naming ``runs``, ``algorithms`` or ``params.<algorithm>``.
     """
-    if runs < 1:
-        raise FieldError("runs", "runs must be at least 1")
-    for k, a in enumerate(algorithms):
-        if a not in ALGORITHMS:
-            raise FieldError(("algorithms", k), f"algorithms: unknown algorithm {a!r}; known: "
-                             f"{', '.join(ALGORITHMS)}")
+    check_compare(algorithms, runs, params)
     params = params or {}
-    unknown = sorted(set(params) - set(algorithms))
-    if unknown:
-        raise FieldError(("params", unknown[0]),
-                         f"params.{unknown[0]} names no algorithm being compared")
     rows = []
-    total, done = len(algorithms) * runs, 0
-    for a in algorithms:
-        results: list[PathResult] = []
-        for r in range(runs):
-            results.append(plan_path(scene, start, goal, a, seed + r, params.get(a)))
-            done += 1
+    seeds = [seed + r for r in range(runs)]
+    for k, a in enumerate(algorithms):
+        def sub(f: float, k: int = k) -> None:
             if progress is not None:
-                progress(done / total)
-        ok = [x for x in results if x.success]
-        lengths = np.array([x.length for x in ok])
-        raw = np.array([x.raw_length for x in ok])
-        rows.append(CompareRow(
-            algorithm=a, runs=runs, successes=len(ok),
-            best_length=float(lengths.min()) if len(ok) else math.nan,
-            mean_length=float(lengths.mean()) if len(ok) else math.nan,
-            mean_raw_length=float(raw.mean()) if len(ok) else math.nan,
-            mean_time_s=float(np.mean([x.runtime_s for x in results])),
-            mean_evaluations=float(np.mean([x.evaluations for x in results])),
-        ))
+                progress((k + f) / len(algorithms))
+
+        rows.append(compare_row(a, compare_runs(scene, start, goal, a, seeds, params.get(a),
+                                                sub)))
     return rows

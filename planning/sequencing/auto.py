@@ -19,6 +19,12 @@ evaluations it is reproducible for a given seed; cut short by its time limit it 
 ``message`` and ``extra["stopped"]`` (how far it got then depends on the machine). Every
 order it answers with is a local optimum of the moves over the candidate lists.
 
+The runs can also be computed apart (a job's steps, on several machines): ``search_run``
+makes run ``i`` on its own, with the start hole and generator ``solve`` would draw for it and
+the most kicks it could be given (``run_cap``); ``combine`` makes ``solve``'s answer of such
+runs, running again the one the kick budget cuts short (and any it lacks). Each run then has
+the time limit of its own.
+
 Measured against LKH (``benchmarks/bench_sequencing.py``): see the README's sequencing speed
 table. Why not LKH or OR-Tools themselves: a large binary dependency (and LKH's licence is
 for research only) for what this search does within a fraction of a per cent.
@@ -28,13 +34,13 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..budget import BudgetExhausted
-from .base import ProgressFn, SequenceResult, SequencingProblem, bad_param
+from .base import IMPROVE_EPS, ProgressFn, SequenceResult, SequencingProblem, bad_param
 from .candidates import DEFAULT_K, nearest_by_costs, nearest_by_points
 from .exact import EXACT_MAX, held_karp
 from .iterative import Budget, run_sequencing, sequencing_budget
@@ -42,6 +48,7 @@ from .oropt import KICK_SPAN, LK_BREADTH, MIN_NODES, Engine, greedy_order
 
 __all__ = [
     "Auto",
+    "SearchRun",
     "KICKS_PER_HOLE",
     "STALL_PER_HOLE",
     "default_time_limit",
@@ -57,9 +64,10 @@ STALL_PER_HOLE = 10
 MIN_STALL = 2_000
 #: Default number of runs at most.
 RESTARTS = 100
-#: Wall time one compiled call of the search aims at, s: progress, cancellation and the time
-#: limit are looked at between calls.
-CHUNK_S = 0.02
+#: Kicks of the first compiled call of a run's search, and of every later one (about 10 and
+#: 20 ms at some 40 us a kick): progress, cancellation and the time limit are looked at
+#: between calls. Fixed, so a run's history does not depend on the machine's speed.
+FIRST_CHUNK, CHUNK_KICKS = 256, 512
 
 
 def default_time_limit(n: int) -> float:
@@ -120,6 +128,25 @@ def improve_order(problem: SequencingProblem, order, *, kicks: int, seed: int,
     eng.polish()
     best = eng.best_order()
     return best if problem.length(best) <= problem.length(order) else order
+
+
+@dataclass(frozen=True)
+class SearchRun:
+    """One run of ``Auto``'s search on its own (``Auto.search_run``): its ``index``, the
+    kicks it could run (``cap``) and ran, what stopped it (``stall``, ``cap``, ``time
+    limit``), how many orders it offered (one after its descent, one per compiled call, one
+    after its polish) and ``records``: ``(offer, length mm, free-node order (n,) or None)``
+    of each offer shorter than every earlier one of the run (the only ones that can become
+    the search's best; the order kept only where it can be the answer: within
+    ``IMPROVE_EPS`` of the run's shortest), and the seconds it took."""
+
+    index: int
+    cap: int
+    kicks: int
+    stop: str
+    offers: int
+    records: tuple[tuple[int, float, np.ndarray | None], ...]
+    seconds: float
 
 
 @dataclass(frozen=True)
@@ -187,11 +214,12 @@ class Auto:
     def solve(self, problem: SequencingProblem, rng: np.random.Generator, *,
               progress: ProgressFn | None = None, max_evaluations: int | None = None,
               clock: Callable[[], float] = time.perf_counter) -> SequenceResult:
-        """Solve. ``history`` has one entry per descent from a start and one per chunk of
-        kicks (about ``CHUNK_S`` s each); ``extra`` says what stopped the search
+        """Solve. ``history`` has one entry per descent from a start, per compiled call of
+        kicks (``FIRST_CHUNK``, then ``CHUNK_KICKS`` kicks) and per polish; ``extra`` says
+        what stopped the search
         (``"stopped"``: ``kicks``, ``stall``, ``time limit`` or ``evaluations``) and how
         many kicks ran. ``clock`` (s) measures the time limit."""
-        exact = problem.n <= max(self.exact_max, 3) or problem.n + 2 < MIN_NODES
+        exact = self.exact_for(problem)
         tr = sequencing_budget(problem, 1, None, max_evaluations)
         extra: dict = {}
         res = run_sequencing(
@@ -218,60 +246,218 @@ class Auto:
         stall = self.stall_budget(n)
         done = 0
         runs = 0
-        stopped = "runs"
-        extra.update(stopped=stopped, kicks=0, runs=0)
-
-        def report() -> None:
-            if progress is not None:
-                by_kicks = done / total if total else 1.0
-                progress(min(1.0, max(by_kicks, (clock() - t0) / limit)))
-
+        extra.update(stopped="runs", kicks=0, runs=0)
+        starts = self._starts(n, rng)
+        room = None if tr.max_evaluations is None else \
+            (lambda: max(1, tr.max_evaluations - tr.evaluations))
         timed_out = False
-        while runs < self.restarts and not timed_out:
+        while runs < self.restarts:
             if runs and done >= total:
                 break
             if runs and clock() - t0 >= limit:
                 timed_out = True
                 break
-            first = None if runs == 0 else int(rng.integers(n))
-            eng = engine_for(problem, self.neighbours, int(rng.integers(2**63)), first,
-                             lk_depth=self.lk_depth)
-            eng.descend()
+            first, seed = next(starts)
             runs += 1
             extra["runs"] = runs
-            self._offer(tr, problem, eng, 1)
-            report()
-            chunk, last = 256, 0.0
-            while done < total:
-                if clock() - t0 + last >= limit:  # another chunk like the last would overrun
-                    timed_out = True
-                    break
-                k = min(chunk, total - done)
-                if tr.max_evaluations is not None:
-                    k = min(k, max(1, tr.max_evaluations - tr.evaluations))
-                c0, w0 = time.perf_counter(), clock()
-                ran = eng.kick(k, span=self.kick_span, threshold=self.threshold, stall=stall)
-                spent = time.perf_counter() - c0
-                last = clock() - w0
-                done += ran
-                extra["kicks"] = done
-                self._offer(tr, problem, eng, ran)
-                report()
-                if ran < k:  # stalled: the next run
-                    break
-                # aim each call at CHUNK_S s (how many kicks that is varies; the course of
-                # the search does not: the generator and tour carry over between calls)
-                chunk = int(min(max(64, 2 * chunk), max(64, chunk * CHUNK_S / max(spent, 1e-6))))
-            eng.polish()  # a strict local optimum, whatever the don't-look bits missed
-            self._offer(tr, problem, eng, 0)
-        if done >= total:
-            stopped = "kicks"
-        elif timed_out:
-            stopped = "time limit"
-        extra["stopped"] = stopped
-        extra["time_limit_s"] = limit
-        msg = f"{done} kicks in {runs} run{'s' if runs > 1 else ''}"
+
+            def offer(eng: Engine, evaluations: int, kicks: int, before: int = done) -> None:
+                extra["kicks"] = before + kicks
+                self._offer(tr, problem, eng, evaluations)
+                if progress is not None:
+                    by_kicks = (before + kicks) / total if total else 1.0
+                    progress(min(1.0, max(by_kicks, (clock() - t0) / limit)))
+
+            kicks, stop = self._search(problem, first, seed, total - done, stall, clock, t0,
+                                       limit, offer, room)
+            done += kicks
+            if stop == "time limit":
+                timed_out = True
+                break
+        stopped = "kicks" if done >= total else "time limit" if timed_out else "runs"
+        extra.update(stopped=stopped, kicks=done, time_limit_s=limit)
+        return self._message(done, runs, stopped)
+
+    @staticmethod
+    def _message(kicks: int, runs: int, stopped: str) -> str:
+        msg = f"{kicks} kicks in {runs} run{'s' if runs > 1 else ''}"
         return msg + (", stopped by the time limit" if stopped == "time limit" else "")
+
+    @staticmethod
+    def _starts(n: int, rng: np.random.Generator):
+        """``(first hole or None, engine seed)`` of each run in turn, drawn from ``rng``: run
+        0 from the nearest-neighbour path of the start, later ones from a random hole."""
+        yield None, int(rng.integers(2**63))
+        while True:
+            first = int(rng.integers(n))
+            yield first, int(rng.integers(2**63))
+
+    def _search(self, problem: SequencingProblem, first: int | None, seed: int, cap: int,
+                stall: int, clock: Callable[[], float], t0: float, limit: float,
+                offer: Callable[[Engine, int, int], None],
+                room: Callable[[], int] | None = None) -> tuple[int, str]:
+        """One run: a descent from the nearest-neighbour path begun at ``first``, then up to
+        ``cap`` kicks (fewer after ``stall`` without a shorter path, or once another call
+        like the last would pass ``t0 + limit`` on ``clock``), then a polish.
+        ``offer(engine, evaluations, kicks so far)`` after the descent, each call and the
+        polish; ``room()`` caps a call's kicks. Answers the kicks run and what stopped the
+        run: ``stall``, ``cap`` or ``time limit``."""
+        eng = engine_for(problem, self.neighbours, seed, first, lk_depth=self.lk_depth)
+        eng.descend()
+        offer(eng, 1, 0)
+        done, chunk, last, stop = 0, FIRST_CHUNK, 0.0, "cap"
+        while done < cap:
+            if clock() - t0 + last >= limit:  # another call like the last would overrun
+                stop = "time limit"
+                break
+            k = min(chunk, cap - done)
+            if room is not None:
+                k = min(k, room())
+            w0 = clock()
+            ran = eng.kick(k, span=self.kick_span, threshold=self.threshold, stall=stall)
+            last = clock() - w0
+            done += ran
+            offer(eng, ran, done)
+            if ran < k:  # stalled
+                stop = "stall"
+                break
+            chunk = CHUNK_KICKS
+        eng.polish()  # a strict local optimum, whatever the don't-look bits missed
+        offer(eng, 0, done)
+        return done, stop
+
+    # ---- the runs one at a time (a job's steps) ----------------------------------------------
+    def exact_for(self, problem: SequencingProblem) -> bool:
+        """Whether ``problem`` is solved exactly (no runs)."""
+        return problem.n <= max(self.exact_max, 3) or problem.n + 2 < MIN_NODES
+
+    def max_runs(self, n: int) -> int:
+        """Most runs the search of ``n`` holes makes (by its budgets; the time limit may end
+        it sooner): every run but the last ends by stalling, after ``stall`` kicks at least,
+        and none starts once ``kicks`` have run."""
+        total, stall = self.kick_budget(n), self.stall_budget(n)
+        if total <= 0:
+            return 1
+        return max(1, min(self.restarts, -(-total // stall)))
+
+    def run_cap(self, n: int, index: int, earlier: Sequence[SearchRun] = ()) -> int | None:
+        """Most kicks run ``index`` may be given, knowing runs ``0..len(earlier)-1`` (in
+        order): the kicks left after them less ``stall`` per run between; None when the
+        search ends before run ``index`` (budgets spent, a run cut short, a time limit)."""
+        total, stall = self.kick_budget(n), self.stall_budget(n)
+        if index == 0:
+            return total
+        if index >= self.restarts:
+            return None
+        done = 0
+        for used, run in enumerate(earlier[:index]):
+            if used and done >= total:
+                return None
+            left = total - done
+            if run.cap == left or (run.stop != "cap" and run.kicks < left):
+                if run.stop == "time limit":
+                    return None
+                done += run.kicks
+            elif run.kicks >= left:  # the budget cuts it short: the search ends with it
+                return None
+            else:  # it used up a cap below what it had: how long it runs is not known
+                return max(0, total - done - (index - used) * stall) or None
+        if done >= total and earlier:
+            return None
+        return max(0, total - done - (index - min(len(earlier), index)) * stall) or None
+
+    def search_run(self, problem: SequencingProblem, seed: int, index: int,
+                   cap: int | None = None, *, clock: Callable[[], float] = time.perf_counter,
+                   progress: ProgressFn | None = None) -> SearchRun:
+        """Run ``index`` of the search ``solve`` makes with ``default_rng(seed)``, on its
+        own: the same start hole and generator, up to ``cap`` kicks (default
+        ``run_cap(n, index)``), with a time limit of its own (``time_budget``).
+        ``combine`` makes ``solve``'s answer of such runs."""
+        c0 = time.perf_counter()
+        n = problem.n
+        starts = self._starts(n, np.random.default_rng(seed))
+        for _ in range(index):
+            next(starts)
+        first, engine_seed = next(starts)
+        if cap is None:
+            cap = self.run_cap(n, index)
+            if cap is None:
+                raise ValueError(f"the search of {n} holes makes no run {index}")
+        limit = self.time_budget(n)
+        t0 = clock()
+        records: list[tuple[int, float, np.ndarray | None]] = []
+        offers = 0
+
+        def offer(eng: Engine, evaluations: int, kicks: int) -> None:
+            nonlocal offers
+            order = eng.best_order()
+            length = float(problem.lengths(order[None])[0])
+            if not records or length < records[-1][1]:
+                records.append((offers, length, np.array(order, dtype=np.int64)))
+            offers += 1
+            if progress is not None:
+                by_kicks = kicks / cap if cap else 1.0
+                progress(min(1.0, max(by_kicks, (clock() - t0) / limit)))
+
+        kicks, stop = self._search(problem, first, engine_seed, cap, self.stall_budget(n),
+                                   clock, t0, limit, offer)
+        # The run's last record the search can keep is within IMPROVE_EPS of its shortest
+        # (a later, shorter one replaces it unless it is that close): only those orders
+        # can be the answer.
+        keep = records[-1][1] + IMPROVE_EPS
+        kept = tuple((i, length, order if length <= keep else None)
+                     for i, length, order in records)
+        return SearchRun(index=index, cap=cap, kicks=kicks, stop=stop, offers=offers,
+                         records=kept, seconds=time.perf_counter() - c0)
+
+    def combine(self, problem: SequencingProblem, runs: Sequence[SearchRun | None], seed: int,
+                *,
+                clock: Callable[[], float] = time.perf_counter,
+                progress: ProgressFn | None = None) -> SequenceResult:
+        """``solve``'s answer (order, length, history, evaluations, message) made of runs
+        computed on their own (``search_run``; ``runs[i]`` is run ``i``, or None if it was
+        not computed): a run is used as it is when ``solve`` would have run it alike (the
+        same kick cap, or a stop before the kicks ``solve`` had left for it), else it is run
+        (again) with those kicks (``seed``: that of the runs). Stopped by kicks, runs or
+        stalls, the answer is ``solve``'s; each run has its own time limit, where
+        ``solve``'s is shared."""
+        n = problem.n
+        total = self.kick_budget(n)
+        best, best_order = math.inf, None
+        history: list[float] = []
+        done = used = evaluations = 0
+        seconds = sum(r.seconds for r in runs if r is not None)
+        timed_out = False
+        while used < self.restarts:
+            if used and done >= total:
+                break
+            left = total - done
+            run = runs[used] if used < len(runs) else None
+            if run is None or run.index != used or not (
+                    run.cap == left or (run.stop != "cap" and run.kicks < left)):
+                run = self.search_run(problem, seed, used, left, clock=clock)
+                seconds += run.seconds
+            records = {i: (length, order) for i, length, order in run.records}
+            for i in range(run.offers):
+                if i in records and records[i][0] < best - IMPROVE_EPS:
+                    best, best_order = records[i]
+                history.append(best)
+            evaluations += 1 + run.kicks
+            done += run.kicks
+            used += 1
+            if progress is not None:
+                progress(min(1.0, done / total) if total else 1.0)
+            if run.stop == "time limit":
+                timed_out = True
+                break
+        stopped = "kicks" if done >= total else "time limit" if timed_out else "runs"
+        return SequenceResult(
+            order=problem.hole_order(best_order), length=float(best),
+            history=np.array(history), runtime_s=seconds, evaluations=evaluations,
+            iterations=len(history), algorithm="auto",
+            message=self._message(done, used, stopped),
+            extra={"stopped": stopped, "kicks": done, "runs": used,
+                   "time_limit_s": self.time_budget(n)})
 
     @staticmethod
     def _offer(tr: Budget, problem: SequencingProblem, eng: Engine, evaluations: int) -> None:

@@ -293,7 +293,8 @@ def _learned_ik_answer(robot: RobotModel, T: np.ndarray, job_id: str, learned,
 
 def _workspace_answer(robot: RobotModel, samples: int, seed: int, voxel: float | None,
                       return_points: int, projections: bool, npy: bool = False) -> bytes:
-    ws = sample_workspace(robot, samples, seed=seed, voxel=voxel)
+    ws = sample_workspace(robot, samples, seed=seed, voxel=voxel, return_points=return_points,
+                          projections=False if npy else projections)
     report = workspace_report(ws, return_points, False if npy else projections)
     if npy:
         return npy_bytes(np.asarray(report["points"], dtype=float).reshape(-1, 3))
