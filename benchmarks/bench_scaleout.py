@@ -15,8 +15,9 @@ with ``GET /jobs/{id}/result``:
   clock runs out, so their paths depend on the load), 5 s per problem, problem k seeded k.
 
 Backends (``--backends``): ``local`` with ``--workers N`` process slots; ``dask`` with a real
-cluster per N: ``dask scheduler`` on a loopback port and ``dask worker tcp://... --nworkers
-N --nthreads 1`` started as subprocesses, waited for until N workers are connected, each
+cluster per N: ``dask scheduler`` on a loopback port and ``python -m app.worker tcp://...
+--nworkers N --nthreads 1`` (``dask worker`` with the job kinds preloaded) started as
+subprocesses, waited for until N workers are connected, each
 worker process warmed (the job kinds imported, the compiled kernels loaded, one step runner
 of ``app.jobs.runner`` started), and both stopped afterwards; the service with
 ``--jobs-backend dask://127.0.0.1:PORT``. Before the timed jobs each service runs one small
@@ -294,9 +295,12 @@ def dask_cluster(n: int, workdir: Path) -> Iterator[str]:
                     raise RuntimeError("the scheduler did not start:\n"
                                        + _tail(logs["scheduler"])) from None
                 time.sleep(0.2)
-        procs.append(_start([dask, "worker", f"tcp://{address}", "--nworkers", str(n),
-                             "--nthreads", "1", "--no-dashboard", "--local-directory",
-                             str(workdir / "dask-worker")], logs["worker"]))
+        # kinoplan's worker command: `dask worker` with the kinds preloaded, the step
+        # runners started up front.
+        procs.append(_start([sys.executable, "-m", "app.worker", f"tcp://{address}",
+                             "--nworkers", str(n), "--nthreads", "1", "--no-dashboard",
+                             "--local-directory", str(workdir / "dask-worker")],
+                            logs["worker"]))
         with Client(f"tcp://{address}", timeout="30s", set_as_default=False) as client:
             try:
                 client.wait_for_workers(n, timeout=CLUSTER_START_S)
