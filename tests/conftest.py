@@ -1,4 +1,4 @@
-"""Shared fixtures: the papers' printed numbers."""
+"""Shared fixtures: the papers' printed numbers, compiled kernels, a fake clock."""
 
 from __future__ import annotations
 
@@ -29,3 +29,21 @@ def motion_kernels() -> None:
     from planning.motion import warm_up
 
     warm_up()
+
+
+class FakeClock:
+    """A clock that moves ``step`` s each time it is read."""
+
+    def __init__(self, step: float) -> None:
+        self.t = 0.0
+        self.step = step
+
+    def __call__(self) -> float:
+        self.t += self.step
+        return self.t
+
+
+@pytest.fixture
+def fake_clock():
+    """``fake_clock(step)``: a clock (a callable) that moves ``step`` s at each reading."""
+    return FakeClock

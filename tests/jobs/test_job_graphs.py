@@ -356,19 +356,7 @@ def test_sequence_jobs_that_do_not_divide_are_one_step():
     assert step_count("sequence", {"holes": holes, "params": {"restarts": 1}}) == 1
 
 
-class FakeClock:
-    """A clock that moves ``step`` s each time it is read."""
-
-    def __init__(self, step: float) -> None:
-        self.t = 0.0
-        self.step = step
-
-    def __call__(self) -> float:
-        self.t += self.step
-        return self.t
-
-
-def test_auto_combine_runs_again_what_it_lacks_or_cannot_use():
+def test_auto_combine_runs_again_what_it_lacks_or_cannot_use(fake_clock):
     """``combine`` makes the one-process answer of any prefix of the runs (it runs the
     missing ones itself), re-running the run whose kicks the budget cuts short; a run
     stopped by its own time limit ends the search there."""
@@ -392,7 +380,7 @@ def test_auto_combine_runs_again_what_it_lacks_or_cannot_use():
         assert np.array_equal(got.history, one.history)
         assert (got.evaluations, got.message) == (one.evaluations, one.message)
     slow = Auto(kicks=3000, stall=300, time_limit=3.0)
-    timed = [slow.search_run(p, 6, 0, clock=FakeClock(1.0))] + runs[1:]
+    timed = [slow.search_run(p, 6, 0, clock=fake_clock(1.0))] + runs[1:]
     assert timed[0].stop == "time limit" and timed[0].kicks < 3000
     got = slow.combine(p, timed, 6)
     assert got.extra["stopped"] == "time limit" and got.extra["runs"] == 1

@@ -145,25 +145,13 @@ def test_the_same_seed_gives_the_same_order():
     assert np.all(np.diff(a.history) <= 1e-9)
 
 
-class FakeClock:
-    """A clock that moves ``step`` s each time it is read."""
-
-    def __init__(self, step: float) -> None:
-        self.t = 0.0
-        self.step = step
-
-    def __call__(self) -> float:
-        self.t += self.step
-        return self.t
-
-
-def test_the_time_limit_is_honoured():
+def test_the_time_limit_is_honoured(fake_clock):
     """Time is read between compiled chunks: with a clock that jumps 1 s per reading and a
     3 s limit, the search stops after a few chunks, says so, and still answers with a
     valid, locally optimal order."""
     H = random_face(400, 12)
     p = SequencingProblem.from_holes(H, [9000, 0, -4000])
-    clock = FakeClock(1.0)
+    clock = fake_clock(1.0)
     res = Auto(time_limit=3.0).solve(p, np.random.default_rng(0), clock=clock)
     assert res.extra["stopped"] == "time limit" and "time limit" in res.message
     assert 0 < res.extra["kicks"] <= 3 * 256 * 4
@@ -172,7 +160,7 @@ def test_the_time_limit_is_honoured():
     # with a limit that does not bind, the kick budget ends the same search at the same
     # place: the course does not depend on how the kicks were split into chunks
     same = Auto(kicks=res.extra["kicks"], time_limit=3600.0).solve(
-        p, np.random.default_rng(0), clock=FakeClock(1e-3))
+        p, np.random.default_rng(0), clock=fake_clock(1e-3))
     assert same.extra["stopped"] == "kicks"
     assert np.array_equal(same.order, res.order)
 
