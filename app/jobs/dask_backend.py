@@ -240,6 +240,11 @@ class DaskBackend(SupervisedBackend):
     def _pass(self) -> None:
         if self.client is not None and self.client.status != "running":
             self._lost()
+        if self.client is None:
+            # Cancels and time limits apply while the cluster is away too (nothing of the
+            # job runs then: its record ends at once).
+            self._handle_time_limits()
+            self._handle_cancels()
         if self.client is None and not self._connect():
             self._outage()
             self._write_progress()
@@ -299,6 +304,7 @@ class DaskBackend(SupervisedBackend):
             job.generation += 1
             self.store.count_attempt(job.id, "re-submitted after the cluster was lost")
             job.dirty = False  # the message just written is the news
+            job.deadline = self._deadline(job.time_limit_s)  # a new attempt's time limit
         client = self.client
         key = job.key
         job.payload_future = client.submit(_payload, job.payload, key=f"kinoplan-{key}-payload",

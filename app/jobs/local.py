@@ -173,21 +173,27 @@ class LocalBackend(SupervisedBackend):
                 self._spawn(job, index)
 
     def _claim(self) -> _Job | None:
-        record = self._claimed.pop(0) if self._claimed else self.store.claim_next_job()
-        if record is None:
-            return None
-        try:
-            payload = self.store.job_payload(record.id)
-        except StoreError:
-            self._claimed.insert(0, record)  # not lost: started once the store answers
-            raise
-        try:
-            kind = get_kind(record.kind)
-            steps = kind.steps(kind.load_params(JobPayload.from_stored(payload).params))
-        except Exception as exc:  # noqa: BLE001 - a job that cannot be planned fails
-            self.store.finish_job(record.id, "failed", message="failed",
-                                  error=f"{type(exc).__name__}: {exc}")
-            return self._claim()
+        """The next queued job, marked running, with its steps planned (a job whose steps
+        cannot be planned fails, and the next is taken)."""
+        while True:
+            record = self._claimed.pop(0) if self._claimed else self.store.claim_next_job()
+            if record is None:
+                return None
+            try:
+                payload = self.store.job_payload(record.id)
+            except StoreError:
+                self._claimed.insert(0, record)  # not lost: started once the store answers
+                raise
+            try:
+                kind = get_kind(record.kind)
+                steps = kind.steps(kind.load_params(JobPayload.from_stored(payload).params))
+            except Exception as exc:  # noqa: BLE001 - a job that cannot be planned fails
+                self.store.finish_job(record.id, "failed", message="failed",
+                                      error=f"{type(exc).__name__}: {exc}")
+                continue
+            return self._add(record, payload, steps)
+
+    def _add(self, record: JobRecord, payload: dict, steps: list[Step]) -> _Job:
         users: dict[int, int] = {}
         waiting = {}
         for i, step in enumerate(steps):

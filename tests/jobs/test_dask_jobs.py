@@ -136,3 +136,27 @@ def test_without_a_scheduler_jobs_answer_503_and_the_rest_works(tmp_path):
         r = client.post("/robots/glt_palletizer/fk", json={"q": [0, 0, 0, 0, 0, 0]})
         assert r.status_code == 200, r.text
         assert client.get("/jobs").status_code == 200
+
+
+def test_a_job_waiting_for_a_lost_scheduler_is_cancelled_at_once(tmp_path):
+    """A cancel while the cluster is away ends the job (nothing of it runs then), and its
+    time limit still counts; neither waits for the scheduler."""
+    from app.jobs.dask_backend import DaskBackend, _Job
+    from app.jobs.graph import whole
+    from app.jobs.kinds import run_sleep
+    from app.store import Store
+
+    store = Store.in_data_dir(tmp_path)
+    backend = DaskBackend(store, "tcp://127.0.0.1:1", 1, deadline_s=3600)
+    for job_id, limit in (("a", None), ("b", 1.0)):
+        store.add_job(job_id, "sleep", {}, {"params": {}}, time_limit_s=limit)
+        record = store.claim_next_job()
+        backend._jobs[job_id] = _Job(record.id, "sleep", {}, whole(run_sleep), limit,
+                                     backend._deadline(limit))
+    backend.cancel("a")
+    backend._jobs["b"].deadline -= 2.0
+    backend._pass()
+    assert store.get_job("a").status == "cancelled"
+    b = store.get_job("b")
+    assert b.status == "failed" and b.error == "time limit of 1 s exceeded"
+    assert backend._jobs == {} and backend.unavailable() is not None
