@@ -181,6 +181,13 @@ class DaskBackend(SupervisedBackend):
         """Steps to keep on the cluster: its worker threads (at least ``workers``)."""
         return max(self.workers, self._threads)
 
+    def start(self) -> None:
+        """Connect first (at most ``CONNECT_TIMEOUT_S``), so that a service whose scheduler
+        is up takes jobs from its first request; then supervise (and keep trying, if the
+        scheduler did not answer)."""
+        self._connect()
+        super().start()
+
     # ---- the connection -------------------------------------------------------------
     def _connect(self) -> bool:
         """Try to reach the scheduler (at most every ``RECONNECT_EVERY_S``)."""
