@@ -61,6 +61,11 @@ def _names(job_key: str) -> tuple[str, str]:
     return f"kinoplan-msgs-{job_key}", f"kinoplan-cancel-{job_key}"
 
 
+class SchedulerLost(RuntimeError):
+    """A step stopped because its worker could no longer reach the scheduler (nobody asked
+    for a cancel): the job is handed over again."""
+
+
 def _payload(payload: dict) -> dict:
     """A task holding the job's payload, which every step of the job depends on (so it
     travels once to each worker that runs a step)."""
@@ -76,7 +81,7 @@ def run_step(job_key: str, index: int, kind: str, payload: dict, fn: Any, args: 
     queue_name, cancel_name = _names(job_key)
     queue, cancel = Queue(queue_name), Event(cancel_name)
     queue.put(("start", index))
-    last, checked = [0.0], [time.monotonic()]
+    last, checked, lost = [0.0], [time.monotonic()], [False]
 
     def progress(fraction: float, message: str) -> None:
         now = time.monotonic()
@@ -92,6 +97,7 @@ def run_step(job_key: str, index: int, kind: str, payload: dict, fn: Any, args: 
         try:
             return cancel.is_set()
         except Exception:  # noqa: BLE001 - the scheduler is gone: stop, nobody waits
+            lost[0] = True
             return True
 
     if cancel.is_set():
@@ -99,6 +105,11 @@ def run_step(job_key: str, index: int, kind: str, payload: dict, fn: Any, args: 
     runner = take_runner()
     try:
         value = runner.run(job_key, kind, payload, fn, args, final, progress, should_stop)
+    except StepCancelled:
+        runner.kill()
+        if lost[0]:
+            raise SchedulerLost("the step's worker lost its scheduler") from None
+        raise
     except BaseException:
         runner.kill()
         raise
@@ -223,6 +234,7 @@ class DaskBackend(SupervisedBackend):
                     self.address, len(self._jobs))
         for job in self._jobs.values():
             job.futures, job.payload_future = [], None
+            job.tracker = Tracker(job.steps)  # its work is lost: it starts over
             job.message = "waiting for the Dask scheduler"
             job.dirty = True
         if client.status == "connecting":
@@ -371,8 +383,15 @@ class DaskBackend(SupervisedBackend):
                 self._submit(job, again=True)
             return
         exc = fut.exception()
-        if isinstance(exc, StepCancelled):
-            self._end(job, "cancelled")
+        if isinstance(exc, StepCancelled | SchedulerLost):
+            # Not a cancel or a time limit of ours (those end the job before its tasks
+            # report): the step stopped because its worker lost a scheduler (a worker of the
+            # old one, briefly registered with the new). The job is handed over again.
+            log.warning("job %s: a step stopped on a worker that lost its scheduler; handing "
+                        "the job over again", job.id)
+            self._signal_cancel(job)
+            self._release(job)
+            self._submit(job, again=True)
         else:
             text = str(exc) if isinstance(exc, StepFailed) else f"{type(exc).__name__}: {exc}"
             self._end(job, "failed", error=text)

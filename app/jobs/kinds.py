@@ -417,7 +417,7 @@ def workspace_graph(params: WorkspaceParams) -> list[Step]:
     steps.append(Step(workspace_grid_step, ([Ref(k) for k in range(n)],), weight=_WS_MERGE,
                       label="extents"))
     steps += [Step(workspace_cells_step, (k, Ref(n)), weight=pass2 * sizes[k],
-                   label=f"part {k + 1} of {n}, cells") for k in range(n)]
+                   label=f"part {k + 1} of {n}") for k in range(n)]
     final = _WS_FINAL + _WS_POINT * min(params.return_points, params.samples)
     steps.append(Step(workspace_result_step, (Ref(n), [Ref(n + 1 + k) for k in range(n)]),
                       weight=final, label="volume"))

@@ -160,3 +160,39 @@ def test_a_job_waiting_for_a_lost_scheduler_is_cancelled_at_once(tmp_path):
     b = store.get_job("b")
     assert b.status == "failed" and b.error == "time limit of 1 s exceeded"
     assert backend._jobs == {} and backend.unavailable() is not None
+
+
+def test_a_step_stopped_by_a_lost_scheduler_is_handed_over_not_cancelled(tmp_path,
+                                                                          monkeypatch):
+    """A step that stopped on its own (its worker lost the scheduler, nobody asked for a
+    cancel) has its job handed to the cluster again; the record stays running."""
+    from types import SimpleNamespace
+
+    from app.jobs import dask_backend
+    from app.jobs.dask_backend import DaskBackend, SchedulerLost, _Job
+    from app.jobs.graph import whole
+    from app.jobs.kinds import run_sleep
+    from app.jobs.runner import StepCancelled
+    from app.store import Store
+
+    store = Store.in_data_dir(tmp_path)
+    backend = DaskBackend(store, "tcp://127.0.0.1:1", 1)
+    backend.client = SimpleNamespace(status="running", cancel=lambda futures: None)
+    submitted = []
+    monkeypatch.setattr(backend, "_submit", lambda job, again=False: submitted.append(again))
+    monkeypatch.setattr(backend, "_signal_cancel", lambda job: None)
+    monkeypatch.setattr(dask_backend, "_names", lambda key: ("q", "e"))
+    for name, exc in (("j", StepCancelled("cancelled")), ("l", SchedulerLost("lost"))):
+        store.add_job(name, "sleep", {}, {"params": {}})
+        job = _Job(store.claim_next_job().id, "sleep", {}, whole(run_sleep), None, None)
+        backend._jobs[name] = job
+        backend._failed(job, SimpleNamespace(status="error", exception=lambda exc=exc: exc))
+        assert submitted[-1] is True and store.get_job(name).status == "running"
+    # An error of the step itself fails the job.
+    store.add_job("k", "sleep", {}, {"params": {}})
+    job = _Job(store.claim_next_job().id, "sleep", {}, whole(run_sleep), None, None)
+    backend._jobs["k"] = job
+    error = dask_backend.StepFailed("RuntimeError: boom")
+    backend._failed(job, SimpleNamespace(status="error", exception=lambda: error))
+    assert store.get_job("k").status == "failed" and store.get_job("k").error == \
+        "RuntimeError: boom"
