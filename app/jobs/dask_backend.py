@@ -30,7 +30,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..store import Store
+from ..store import Store, StoreError
 from . import catalog  # noqa: F401 - a worker unpickling run_step gets every kind
 from .backend import SupervisedBackend
 from .graph import Step, Tracker, resolve
@@ -166,6 +166,8 @@ class DaskBackend(SupervisedBackend):
         self._down_since: float | None = time.monotonic()
         self._next_try = 0.0
         self._warned = False
+        # Jobs claimed (marked running) whose payload the store failed to give: first next.
+        self._claimed: list = []
         #: Lost clients still trying to reconnect on their own (closed by Dask, then dropped).
         self._retired: list = []
         self._threads = 0
@@ -301,11 +303,15 @@ class DaskBackend(SupervisedBackend):
             busy = sum(job.unfinished() for job in self._jobs.values())
             if busy >= self.capacity():
                 return
-            record = self.store.claim_next_job()
+            record = self._claimed.pop(0) if self._claimed else self.store.claim_next_job()
             if record is None:
                 return
             try:
                 payload = self.store.job_payload(record.id)
+            except StoreError:
+                self._claimed.insert(0, record)  # not lost: handed over once the store answers
+                raise
+            try:
                 kind = get_kind(record.kind)
                 steps = kind.steps(kind.load_params(JobPayload.from_stored(payload).params))
             except Exception as exc:  # noqa: BLE001 - a job that cannot be planned fails

@@ -196,3 +196,30 @@ def test_a_step_stopped_by_a_lost_scheduler_is_handed_over_not_cancelled(tmp_pat
     backend._failed(job, SimpleNamespace(status="error", exception=lambda: error))
     assert store.get_job("k").status == "failed" and store.get_job("k").error == \
         "RuntimeError: boom"
+
+
+def test_a_job_claimed_while_the_store_fails_is_handed_over_later(tmp_path, monkeypatch):
+    from pathlib import Path
+
+    from app.jobs.dask_backend import DaskBackend
+    from app.store import Store, StoreError
+
+    store = Store.in_data_dir(tmp_path)
+    backend = DaskBackend(store, "tcp://127.0.0.1:1", 1)
+    submitted = []
+    monkeypatch.setattr(backend, "_submit", lambda job, again=False: submitted.append(job.id))
+    store.add_job("a", "echo", {}, {"params": {"value": 1}})
+    real = store.job_payload
+    fail = [True]
+
+    def flaky(job_id):
+        if fail.pop() if fail else False:
+            raise StoreError(Path("s"), "disk I/O error")
+        return real(job_id)
+
+    monkeypatch.setattr(store, "job_payload", flaky)
+    with pytest.raises(StoreError):
+        backend._start_jobs()
+    assert store.get_job("a").status == "running" and submitted == []
+    backend._start_jobs()
+    assert submitted == ["a"] and store.get_job("a").attempts == 1
