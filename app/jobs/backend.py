@@ -6,7 +6,7 @@ import logging
 import threading
 import time
 
-from ..store import Store
+from ..store import Store, StoreError
 
 __all__ = ["SupervisedBackend"]
 
@@ -33,6 +33,9 @@ class SupervisedBackend:
     def __init__(self, store: Store, workers: int) -> None:
         self.store = store
         self.workers = max(1, int(workers))
+        # Jobs claimed (marked running) whose payload the store failed to give: taken first
+        # at the next pass, so none is left running without a worker.
+        self._claimed: list = []
         self._cancel: set[str] = set()
         self._lock = threading.Lock()
         self._wake = threading.Event()
@@ -116,6 +119,30 @@ class SupervisedBackend:
 
     def _shutdown(self) -> None:
         """Release processes, connections or clients (after the loop has ended)."""
+
+    def _claim_planned(self) -> tuple | None:
+        """The next queued job, marked running: ``(record, payload, steps)``; None when none
+        is queued. A job whose steps cannot be planned fails, and the next is taken; a store
+        failure after the claim keeps the job for the next call and raises."""
+        from .kinds import JobPayload, get_kind
+
+        while True:
+            record = self._claimed.pop(0) if self._claimed else self.store.claim_next_job()
+            if record is None:
+                return None
+            try:
+                payload = self.store.job_payload(record.id)
+            except StoreError:
+                self._claimed.insert(0, record)
+                raise
+            try:
+                kind = get_kind(record.kind)
+                steps = kind.steps(kind.load_params(JobPayload.from_stored(payload).params))
+            except Exception as exc:  # noqa: BLE001 - a job that cannot be planned fails
+                self.store.finish_job(record.id, "failed", message="failed",
+                                      error=f"{type(exc).__name__}: {exc}")
+                continue
+            return record, payload, steps
 
     # ---- time limits ------------------------------------------------------------------
     @staticmethod

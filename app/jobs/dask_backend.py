@@ -30,11 +30,10 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..store import Store, StoreError
+from ..store import Store
 from . import catalog  # noqa: F401 - a worker unpickling run_step gets every kind
 from .backend import SupervisedBackend
 from .graph import Step, Tracker, resolve
-from .kinds import JobPayload, get_kind
 from .runner import StepCancelled, StepFailed, give_back, take_runner
 
 __all__ = ["DaskBackend", "run_step", "DEFAULT_DEADLINE_S"]
@@ -166,8 +165,6 @@ class DaskBackend(SupervisedBackend):
         self._down_since: float | None = time.monotonic()
         self._next_try = 0.0
         self._warned = False
-        # Jobs claimed (marked running) whose payload the store failed to give: first next.
-        self._claimed: list = []
         #: Lost clients still trying to reconnect on their own (closed by Dask, then dropped).
         self._retired: list = []
         self._threads = 0
@@ -303,21 +300,10 @@ class DaskBackend(SupervisedBackend):
             busy = sum(job.unfinished() for job in self._jobs.values())
             if busy >= self.capacity():
                 return
-            record = self._claimed.pop(0) if self._claimed else self.store.claim_next_job()
-            if record is None:
+            claimed = self._claim_planned()
+            if claimed is None:
                 return
-            try:
-                payload = self.store.job_payload(record.id)
-            except StoreError:
-                self._claimed.insert(0, record)  # not lost: handed over once the store answers
-                raise
-            try:
-                kind = get_kind(record.kind)
-                steps = kind.steps(kind.load_params(JobPayload.from_stored(payload).params))
-            except Exception as exc:  # noqa: BLE001 - a job that cannot be planned fails
-                self.store.finish_job(record.id, "failed", message="failed",
-                                      error=f"{type(exc).__name__}: {exc}")
-                continue
+            record, payload, steps = claimed
             job = _Job(record.id, record.kind, payload, steps, record.time_limit_s,
                        self._deadline(record.time_limit_s))
             self._jobs[job.id] = job

@@ -26,11 +26,11 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
-from ..store import JobRecord, Store, StoreError
+from ..store import JobRecord, Store
 from . import catalog
 from .backend import SupervisedBackend
 from .graph import Step, Tracker, refs_of, resolve
-from .kinds import JobCancelled, JobPayload, get_kind, load_job
+from .kinds import JobCancelled, load_job
 
 __all__ = ["LocalBackend"]
 
@@ -128,9 +128,6 @@ class LocalBackend(SupervisedBackend):
              "scipy.sparse", catalog.__name__, "app.jobs.warm_kernels"]
         )
         self._jobs: dict[str, _Job] = {}
-        # Jobs claimed (marked running) whose steps could not be planned yet because the
-        # store failed between the claim and reading the payload: started first next pass.
-        self._claimed: list = []
 
     @property
     def _running(self) -> dict[str, _Job]:
@@ -175,23 +172,8 @@ class LocalBackend(SupervisedBackend):
     def _claim(self) -> _Job | None:
         """The next queued job, marked running, with its steps planned (a job whose steps
         cannot be planned fails, and the next is taken)."""
-        while True:
-            record = self._claimed.pop(0) if self._claimed else self.store.claim_next_job()
-            if record is None:
-                return None
-            try:
-                payload = self.store.job_payload(record.id)
-            except StoreError:
-                self._claimed.insert(0, record)  # not lost: started once the store answers
-                raise
-            try:
-                kind = get_kind(record.kind)
-                steps = kind.steps(kind.load_params(JobPayload.from_stored(payload).params))
-            except Exception as exc:  # noqa: BLE001 - a job that cannot be planned fails
-                self.store.finish_job(record.id, "failed", message="failed",
-                                      error=f"{type(exc).__name__}: {exc}")
-                continue
-            return self._add(record, payload, steps)
+        claimed = self._claim_planned()
+        return None if claimed is None else self._add(*claimed)
 
     def _add(self, record: JobRecord, payload: dict, steps: list[Step]) -> _Job:
         users: dict[int, int] = {}
