@@ -19,6 +19,8 @@ RETRY_S = 0.1
 RETRY_MAX_S = 5.0
 #: Distinct error messages logged in one spell of failing passes.
 MAX_LOGGED_ERRORS = 10
+#: Least seconds between two progress writes of one job to the store.
+PROGRESS_WRITE_S = 0.2
 
 
 class SupervisedBackend:
@@ -119,6 +121,14 @@ class SupervisedBackend:
 
     def _shutdown(self) -> None:
         """Release processes, connections or clients (after the loop has ended)."""
+
+    def _save_progress(self, job_id: str, tracker) -> None:
+        """Write a job's progress (``app.jobs.graph.Tracker``) when it has news, at most
+        every ``PROGRESS_WRITE_S``."""
+        now = time.monotonic()
+        if tracker.dirty and now - tracker.last_write >= PROGRESS_WRITE_S:
+            self.store.set_progress(job_id, tracker.fraction(), tracker.message[:200])
+            tracker.dirty, tracker.last_write = False, now
 
     def _claim_planned(self) -> tuple | None:
         """The next queued job, marked running: ``(record, payload, steps)``; None when none

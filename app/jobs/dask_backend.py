@@ -49,8 +49,8 @@ CONNECT_TIMEOUT_S = 3.0
 #: Seconds without a scheduler after which running and queued jobs fail (``--cluster-
 #: deadline-s``).
 DEFAULT_DEADLINE_S = 600.0
-#: Least seconds between two progress writes of one job to the store.
-PROGRESS_WRITE_S = 0.2
+#: Least seconds between two progress messages of a running task.
+PROGRESS_SEND_S = 0.2
 #: Seconds between two checks of a running task for its job's cancel event.
 CANCEL_CHECK_S = 0.2
 
@@ -84,7 +84,7 @@ def run_step(job_key: str, index: int, kind: str, payload: dict, fn: Any, args: 
 
     def progress(fraction: float, message: str) -> None:
         now = time.monotonic()
-        if now - last[0] >= PROGRESS_WRITE_S or fraction >= 1.0:
+        if now - last[0] >= PROGRESS_SEND_S or fraction >= 1.0:
             last[0] = now
             queue.put(("progress", index, float(fraction), message))
 
@@ -131,9 +131,6 @@ class _Job:
     payload_future: Any = None
     tracker: Tracker | None = None
     starts: list[int] = field(default_factory=list)
-    last_write: float = 0.0
-    message: str = ""
-    dirty: bool = False
 
     @property
     def key(self) -> str:
@@ -234,8 +231,7 @@ class DaskBackend(SupervisedBackend):
         for job in self._jobs.values():
             job.futures, job.payload_future = [], None
             job.tracker = Tracker(job.steps)  # its work is lost: it starts over
-            job.message = "waiting for the Dask scheduler"
-            job.dirty = True
+            job.tracker.message, job.tracker.dirty = "waiting for the Dask scheduler", True
         if client.status == "connecting":
             # Its own reconnection gives up after CONNECT_TIMEOUT_S and closes it; closing
             # it now would only interrupt that with tracebacks in the log.
@@ -314,7 +310,6 @@ class DaskBackend(SupervisedBackend):
         if again:
             job.generation += 1
             self.store.count_attempt(job.id, "re-submitted after the cluster was lost")
-            job.dirty = False  # the message just written is the news
             job.deadline = self._deadline(job.time_limit_s)  # a new attempt's time limit
         client = self.client
         key = job.key
@@ -358,11 +353,7 @@ class DaskBackend(SupervisedBackend):
             if job.starts[index] > 1:  # the scheduler re-ran it: its worker was lost
                 self.store.count_attempt(job.id, f"step {index + 1} re-run on another worker")
         elif msg[0] == "progress" and job.tracker is not None:
-            _, index, fraction, text = msg
-            job.tracker.update(index, fraction)
-            label = job.steps[index].label
-            job.message = f"{label}: {text}" if label else text
-            job.dirty = True
+            job.tracker.report(*msg[1:])
 
     def _failed(self, job: _Job, fut: Any) -> None:
         if fut.status == "cancelled":
@@ -424,12 +415,9 @@ class DaskBackend(SupervisedBackend):
             pass
 
     def _write_progress(self) -> None:
-        now = time.monotonic()
         for job in self._jobs.values():
-            if job.dirty and now - job.last_write >= PROGRESS_WRITE_S:
-                fraction = job.tracker.fraction() if job.tracker is not None else 0.0
-                self.store.set_progress(job.id, fraction, job.message[:200])
-                job.dirty, job.last_write = False, now
+            if job.tracker is not None:
+                self._save_progress(job.id, job.tracker)
 
     def _handle_time_limits(self) -> None:
         """Fail the jobs past their time limit now; stop their tasks as a cancel does."""

@@ -86,12 +86,25 @@ def whole(run: Callable[[Any, Callable[[float, str], None]], Any]) -> list[Step]
 
 
 class Tracker:
-    """The job's progress out of its steps' own: ``update(i, f)`` → the job's fraction."""
+    """The job's progress out of its steps' own: ``update(i, f)`` → the job's fraction;
+    ``report(i, f, text)`` also keeps the latest message (the step's label before it) and
+    marks it for the store (``dirty``; ``last_write``: when it was last written)."""
 
     def __init__(self, steps: Sequence[Step]) -> None:
         self.weights = [s.weight for s in steps]
+        self.labels = [s.label for s in steps]
         self.total = float(sum(self.weights))
         self.fractions = [0.0] * len(steps)
+        self.message = ""
+        self.dirty = False
+        self.last_write = 0.0
+
+    def report(self, index: int, fraction: float, text: str) -> tuple[float, str]:
+        """Step ``index`` at ``fraction``, saying ``text``: the job's fraction and message."""
+        label = self.labels[index]
+        self.message = f"{label}: {text}" if label else text
+        self.dirty = True
+        return self.update(index, fraction), self.message
 
     def update(self, index: int, fraction: float) -> float:
         self.fractions[index] = min(max(float(fraction), 0.0), 1.0)
@@ -113,10 +126,8 @@ def run_inline(steps: Sequence[Step], params: Any,
     values: dict[int, Any] = {}
     tracker = Tracker(steps)
     for i, step in enumerate(steps):
-        label = step.label
-
-        def report(fraction: float, message: str, i: int = i, label: str = label) -> None:
-            progress(tracker.update(i, fraction), f"{label}: {message}" if label else message)
+        def report(fraction: float, message: str, i: int = i) -> None:
+            progress(*tracker.report(i, fraction, message))
 
         values[i] = step.fn(params, *resolve(step.args, values.__getitem__), report)
         tracker.update(i, 1.0)

@@ -40,8 +40,6 @@ log = logging.getLogger(__name__)
 POLL_S = 0.05
 #: Seconds a cancelled job gets to exit after SIGTERM before SIGKILL.
 TERMINATE_GRACE_S = 0.5
-#: Least seconds between two progress writes of one job to the store.
-PROGRESS_WRITE_S = 0.2
 
 
 def _child_main(conn: Connection, kind: str, payload: dict, fn: Any, args: tuple,
@@ -96,9 +94,6 @@ class _Job:
     values: dict[int, Any] = field(default_factory=dict)
     users: dict[int, int] = field(default_factory=dict)
     running: dict[int, _Running] = field(default_factory=dict)
-    last_write: float = 0.0
-    message: str = "started"
-    dirty: bool = False
     over_time: bool = False
     cancelled: bool | None = None  # asked to stop (read once, kept until the outcome is saved)
     #: The outcome once decided: ("succeeded", result) / ("failed", error) / ("cancelled",).
@@ -128,11 +123,6 @@ class LocalBackend(SupervisedBackend):
              "scipy.sparse", catalog.__name__, "app.jobs.warm_kernels"]
         )
         self._jobs: dict[str, _Job] = {}
-
-    @property
-    def _running(self) -> dict[str, _Job]:
-        """The running jobs (by id)."""
-        return self._jobs
 
     def _procs(self) -> list[_Running]:
         return [run for job in self._jobs.values() for run in job.running.values()]
@@ -231,10 +221,7 @@ class LocalBackend(SupervisedBackend):
                 msg = run.conn.recv()
                 if msg[0] == "progress":
                     if job is not None:
-                        job.tracker.update(run.index, msg[1])
-                        label = job.steps[run.index].label
-                        job.message = f"{label}: {msg[2]}" if label else msg[2]
-                        job.dirty = True
+                        job.tracker.report(run.index, msg[1], msg[2])
                 else:
                     run.outcome = msg
         except (EOFError, OSError):
@@ -249,7 +236,7 @@ class LocalBackend(SupervisedBackend):
             return
         if kind == "value":
             job.tracker.update(run.index, 1.0)
-            job.dirty = True
+            job.tracker.dirty = True
             if run.index == len(job.steps) - 1:
                 job.ending = ("succeeded", value)
                 return
@@ -279,11 +266,9 @@ class LocalBackend(SupervisedBackend):
     def _settle(self) -> None:
         """Write progress, and the outcome of each job whose processes have all ended. If
         the store fails, the job stays with its outcome and the next pass saves it again."""
-        now = time.monotonic()
         for job in list(self._jobs.values()):
-            if job.dirty and job.ending is None and now - job.last_write >= PROGRESS_WRITE_S:
-                self.store.set_progress(job.id, job.tracker.fraction(), job.message)
-                job.dirty, job.last_write = False, now
+            if job.ending is None:
+                self._save_progress(job.id, job.tracker)
             if job.ending is None or job.running:
                 continue
             self._finish(job)

@@ -32,28 +32,28 @@ from planning.motion.sites import (
 pytestmark = pytest.mark.usefixtures("motion_kernels")
 
 
+def _at_site(robot: str, site):
+    """The robot's model, capsule collision model, its site (``site(model)``) and a
+    checker of the two."""
+    model = builtin_model(robot)
+    cm = RobotCollisionModel.from_model(model)
+    scene = site(model)
+    return model, cm, scene, MotionChecker(cm, scene)
+
+
 @pytest.fixture(scope="module")
 def pile():
-    model = builtin_model("pile_driver")
-    cm = RobotCollisionModel.from_model(model)
-    scene = pile_driver_site(model)
-    return model, cm, scene, MotionChecker(cm, scene)
+    return _at_site("pile_driver", pile_driver_site)
 
 
 @pytest.fixture(scope="module")
 def drill():
-    model = builtin_model("tunnel_drill_arm")
-    cm = RobotCollisionModel.from_model(model)
-    scene = tunnel_site()
-    return model, cm, scene, MotionChecker(cm, scene)
+    return _at_site("tunnel_drill_arm", lambda model: tunnel_site())
 
 
 @pytest.fixture(scope="module")
 def palletizer():
-    model = builtin_model("glt_palletizer")
-    cm = RobotCollisionModel.from_model(model)
-    scene = pallet_station(model)
-    return model, cm, scene, MotionChecker(cm, scene)
+    return _at_site("glt_palletizer", pallet_station)
 
 
 def _objects(scene) -> dict:
