@@ -7,9 +7,10 @@ big job run on every worker at once; the last step's value is the job's result. 
 claimed from the queue while the cluster has fewer unfinished steps than worker threads.
 
 Each task runs its step in a child process of the Dask worker (``app.jobs.runner``); it
-reports its start and progress on a Dask ``Queue`` of the job that the supervisor drains, and
-checks the job's cancel ``Event`` every 0.2 s: a cancel, or the job's time limit, kills the
-child, so the worker's CPU is free at once whatever the step is doing.
+reports its start and progress on the service's Dask ``Queue`` (one for all its jobs, drained
+once per supervisor pass), and checks the job's cancel ``Event`` every 0.2 s: a cancel, or
+the job's time limit, kills the child, so the worker's CPU is free at once whatever the step
+is doing.
 
 Faults: the service starts without a reachable scheduler and connects when one appears; while
 none is reachable, submissions are refused (``unavailable``: 503) and ``/health`` says so, while
@@ -27,6 +28,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+import uuid
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -49,15 +51,13 @@ CONNECT_TIMEOUT_S = 3.0
 #: Seconds without a scheduler after which running and queued jobs fail (``--cluster-
 #: deadline-s``).
 DEFAULT_DEADLINE_S = 600.0
-#: Least seconds between two progress messages of a running task.
-PROGRESS_SEND_S = 0.2
 #: Seconds between two checks of a running task for its job's cancel event.
 CANCEL_CHECK_S = 0.2
 
 
-def _names(job_key: str) -> tuple[str, str]:
-    """The job's message queue and cancel event on the scheduler."""
-    return f"kinoplan-msgs-{job_key}", f"kinoplan-cancel-{job_key}"
+def _cancel_name(job_key: str) -> str:
+    """The job's cancel event on the scheduler."""
+    return f"kinoplan-cancel-{job_key}"
 
 
 class SchedulerLost(RuntimeError):
@@ -71,22 +71,33 @@ def _payload(payload: dict) -> dict:
     return payload
 
 
-def run_step(job_key: str, index: int, kind: str, payload: dict, fn: Any, args: tuple,
-             final: bool) -> Any:
+def run_step(queue_name: str, job_key: str, index: int, kind: str, payload: dict, fn: Any,
+             args: tuple, final: bool) -> Any:
     """What a Dask worker runs: one step of a job in a child process, with its start and
-    progress reported and the job's cancel event watched."""
-    from distributed import Event, Queue
+    progress (as often as the runner sends it) put on the service's queue ``queue_name`` and
+    the job's cancel event watched."""
+    from distributed import Queue
 
-    queue_name, cancel_name = _names(job_key)
-    queue, cancel = Queue(queue_name), Event(cancel_name)
-    queue.put(("start", index))
-    last, checked, lost = [0.0], [time.monotonic()], [False]
+    queue = Queue(queue_name)
+    try:
+        queue.put(("start", job_key, index))
+        return _run_step(queue, job_key, index, kind, payload, fn, args, final)
+    finally:
+        try:
+            queue.close()  # this task's hold on the queue; the service keeps its own
+        except Exception:  # noqa: BLE001 - the scheduler is gone, and the queue with it
+            pass
+
+
+def _run_step(queue: Any, job_key: str, index: int, kind: str, payload: dict, fn: Any,
+              args: tuple, final: bool) -> Any:
+    from distributed import Event
+
+    cancel = Event(_cancel_name(job_key))
+    checked, lost = [time.monotonic()], [False]
 
     def progress(fraction: float, message: str) -> None:
-        now = time.monotonic()
-        if now - last[0] >= PROGRESS_SEND_S or fraction >= 1.0:
-            last[0] = now
-            queue.put(("progress", index, float(fraction), message))
+        queue.put(("progress", job_key, index, float(fraction), message))
 
     def should_stop() -> bool:
         now = time.monotonic()
@@ -157,6 +168,9 @@ class DaskBackend(SupervisedBackend):
         self.address = address
         self.deadline_s = float(deadline_s)
         self.client: Any = None
+        #: The queue the tasks of this service's jobs report on (a handle per connection).
+        self._queue_name = f"kinoplan-msgs-{uuid.uuid4().hex[:16]}"
+        self._queue: Any = None
         self._jobs: dict[str, _Job] = {}
         #: Since when no scheduler is connected (None while one is).
         self._down_since: float | None = time.monotonic()
@@ -202,10 +216,11 @@ class DaskBackend(SupervisedBackend):
         if now < self._next_try:
             return False
         self._next_try = now + RECONNECT_EVERY_S
-        from distributed import Client
+        from distributed import Client, Queue
 
         try:
             client = Client(self.address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+            queue = Queue(self._queue_name, client=client)
         except Exception as exc:  # noqa: BLE001 - unreachable, refused, TLS, ...
             if not self._warned:
                 log.warning("the Dask scheduler at %s is unreachable (%s: %s); trying again "
@@ -214,7 +229,7 @@ class DaskBackend(SupervisedBackend):
                 self._warned = True
             return False
         down = time.monotonic() - (self._down_since or now)
-        self.client, self._down_since, self._warned = client, None, False
+        self.client, self._queue, self._down_since, self._warned = client, queue, None, False
         log.warning("connected to the Dask scheduler at %s%s", self.address,
                     f" after {down:.1f} s without it" if self._jobs else "")
         for job in list(self._jobs.values()):
@@ -223,7 +238,7 @@ class DaskBackend(SupervisedBackend):
 
     def _lost(self) -> None:
         """The connection is gone: drop the client; running jobs wait for the next one."""
-        client, self.client = self.client, None
+        client, self.client, self._queue = self.client, None, None
         self._down_since = time.monotonic()
         self._next_try = 0.0
         log.warning("lost the Dask scheduler at %s; %d running job(s) wait for it",
@@ -247,6 +262,10 @@ class DaskBackend(SupervisedBackend):
         if self.client is not None:
             for job in self._jobs.values():
                 self._signal_cancel(job)
+            try:
+                self._queue.close()
+            except Exception:  # noqa: BLE001 - best effort; the scheduler may be gone
+                pass
             _close_quietly(self.client)
             self.client = None
 
@@ -259,20 +278,17 @@ class DaskBackend(SupervisedBackend):
             # job runs then: its record ends at once).
             self._handle_time_limits()
             self._handle_cancels()
-        if self.client is None and not self._connect():
-            self._outage()
-            self._write_progress()
-            self._wake.wait(POLL_S)
-            self._wake.clear()
-            return
-        try:
-            self._threads = sum(self.client.nthreads().values())
-        except Exception:  # noqa: BLE001 - lost in between: the next pass sees it
-            pass
-        self._handle_time_limits()
-        self._handle_cancels()
-        self._start_jobs()
-        self._collect()
+            if not self._connect():
+                self._outage()
+        if self.client is not None:
+            try:
+                self._threads = sum(self.client.nthreads().values())
+            except Exception:  # noqa: BLE001 - lost in between: the next pass sees it
+                pass
+            self._handle_time_limits()
+            self._handle_cancels()
+            self._start_jobs()
+            self._collect()
         self._write_progress()
         self._wake.wait(POLL_S)
         self._wake.clear()
@@ -320,24 +336,24 @@ class DaskBackend(SupervisedBackend):
         for i, step in enumerate(job.steps):
             args = resolve(step.args, futures)
             futures.append(client.submit(
-                run_step, key, i, job.kind, job.payload_future, step.fn, args, i == last,
+                run_step, self._queue_name, key, i, job.kind, job.payload_future, step.fn,
+                args, i == last,
                 key=f"kinoplan-{key}-step-{i}", pure=False, retries=0))
         job.futures = futures
         job.tracker = Tracker(job.steps)
         job.starts = [0] * len(job.steps)
 
     def _collect(self) -> None:
-        from distributed import Queue
-
-        for job in list(self._jobs.values()):
-            if not job.futures:
-                continue
-            try:
-                msgs = Queue(_names(job.key)[0], client=self.client).get(batch=True)
-            except Exception:  # noqa: BLE001 - no message yet, or the scheduler just left
-                msgs = []
-            for msg in msgs or ():
-                self._message(job, msg)
+        try:
+            msgs = self._queue.get(batch=True)
+        except Exception:  # noqa: BLE001 - the scheduler just left: the next pass sees it
+            msgs = []
+        by_key = {job.key: job for job in self._jobs.values() if job.futures}
+        for msg in msgs or ():
+            job = by_key.get(msg[1])  # None: a job that has ended, or an earlier attempt's
+            if job is not None:
+                self._message(job, msg[0], msg[2:])
+        for job in list(by_key.values()):
             final = job.futures[-1]
             failed = next((f for f in job.futures if f.status in ("error", "cancelled")),
                           None)
@@ -346,14 +362,14 @@ class DaskBackend(SupervisedBackend):
             elif failed is not None:
                 self._failed(job, failed)
 
-    def _message(self, job: _Job, msg: Any) -> None:
-        if msg[0] == "start":
-            index = msg[1]
+    def _message(self, job: _Job, tag: str, body: tuple) -> None:
+        if tag == "start":
+            index = body[0]
             job.starts[index] += 1
             if job.starts[index] > 1:  # the scheduler re-ran it: its worker was lost
                 self.store.count_attempt(job.id, f"step {index + 1} re-run on another worker")
-        elif msg[0] == "progress" and job.tracker is not None:
-            job.tracker.report(*msg[1:])
+        elif tag == "progress" and job.tracker is not None:
+            job.tracker.report(*body)
 
     def _failed(self, job: _Job, fut: Any) -> None:
         if fut.status == "cancelled":
@@ -362,8 +378,7 @@ class DaskBackend(SupervisedBackend):
             if self.client is not None and self.client.status == "running":
                 log.warning("job %s: its tasks were dropped by the cluster; handing it over "
                             "again", job.id)
-                self._signal_cancel(job)
-                self._submit(job, again=True)
+                self._hand_over(job)
             return
         exc = fut.exception()
         if isinstance(exc, StepCancelled | SchedulerLost):
@@ -372,12 +387,16 @@ class DaskBackend(SupervisedBackend):
             # old one, briefly registered with the new). The job is handed over again.
             log.warning("job %s: a step stopped on a worker that lost its scheduler; handing "
                         "the job over again", job.id)
-            self._signal_cancel(job)
-            self._release(job)
-            self._submit(job, again=True)
+            self._hand_over(job)
         else:
             text = str(exc) if isinstance(exc, StepFailed) else f"{type(exc).__name__}: {exc}"
             self._end(job, "failed", error=text)
+
+    def _hand_over(self, job: _Job) -> None:
+        """Stop what is left of the job's attempt on the cluster and submit it again."""
+        self._signal_cancel(job)
+        self._release(job)
+        self._submit(job, again=True)
 
     def _end(self, job: _Job, status: str, *, result_json: str | None = None,
              error: str | None = None) -> None:
@@ -391,16 +410,13 @@ class DaskBackend(SupervisedBackend):
         self._release(job)
 
     def _release(self, job: _Job) -> None:
-        """Stop the job's tasks and drop what it left on the scheduler."""
+        """Stop the job's tasks and drop their futures."""
         futures = [f for f in [*job.futures, job.payload_future] if f is not None]
         job.futures, job.payload_future = [], None
         if self.client is None:
             return
         try:
             self.client.cancel(futures)
-            from distributed import Queue
-
-            Queue(_names(job.key)[0], client=self.client).close()
         except Exception:  # noqa: BLE001 - best effort; the scheduler may be gone
             pass
 
@@ -410,7 +426,7 @@ class DaskBackend(SupervisedBackend):
         from distributed import Event
 
         try:
-            Event(_names(job.key)[1], client=self.client).set()
+            Event(_cancel_name(job.key), client=self.client).set()
         except Exception:  # noqa: BLE001 - lost: its tasks end with their worker's session
             pass
 

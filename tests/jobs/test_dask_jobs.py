@@ -181,7 +181,6 @@ def test_a_step_stopped_by_a_lost_scheduler_is_handed_over_not_cancelled(tmp_pat
     submitted = []
     monkeypatch.setattr(backend, "_submit", lambda job, again=False: submitted.append(again))
     monkeypatch.setattr(backend, "_signal_cancel", lambda job: None)
-    monkeypatch.setattr(dask_backend, "_names", lambda key: ("q", "e"))
     for name, exc in (("j", StepCancelled("cancelled")), ("l", SchedulerLost("lost"))):
         store.add_job(name, "sleep", {}, {"params": {}})
         job = _Job(store.claim_next_job().id, "sleep", {}, whole(run_sleep), None, None)
@@ -223,3 +222,24 @@ def test_a_job_claimed_while_the_store_fails_is_handed_over_later(tmp_path, monk
     assert store.get_job("a").status == "running" and submitted == []
     backend._start_jobs()
     assert submitted == ["a"] and store.get_job("a").attempts == 1
+
+
+def test_jobs_leave_no_queues_on_the_scheduler(cluster, tmp_path):
+    """However many jobs and supervisor passes, the scheduler holds one message queue (the
+    service's), released when the service stops."""
+    queues = cluster.scheduler.extensions["queues"]
+    before = set(queues.queues)
+    address = cluster.scheduler_address.removeprefix("tcp://")
+    settings = Settings(no_viewer=True, data_dir=tmp_path, jobs_backend=f"dask://{address}")
+    with TestClient(create_app(settings)) as client:
+        ids = [submit(client, "sleep", seconds=0.5, steps=5) for _ in range(3)]
+        ids.append(submit(client, "workspace", robot="glt_palletizer", samples=1_100_000,
+                          return_points=10))  # two parts: several tasks of one job
+        for job_id in ids:
+            assert wait_for(client, job_id, timeout=60)["status"] == "succeeded"
+        time.sleep(0.5)  # passes of the supervisor with nothing running
+        assert len(set(queues.queues) - before) == 1
+    deadline = time.monotonic() + 5
+    while set(queues.queues) - before:
+        assert time.monotonic() < deadline, set(queues.queues) - before
+        time.sleep(0.05)
