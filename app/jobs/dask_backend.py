@@ -329,7 +329,10 @@ class DaskBackend(SupervisedBackend):
             job.deadline = self._deadline(job.time_limit_s)  # a new attempt's time limit
         client = self.client
         key = job.key
-        job.payload_future = client.submit(_payload, job.payload, key=f"kinoplan-{key}-payload",
+        # Task keys begin with what the task does: Dask keeps its estimate of a task's
+        # duration by that prefix, and a step estimated as long as the payload (nothing)
+        # would stay on the worker holding the payload instead of spreading.
+        job.payload_future = client.submit(_payload, job.payload, key=f"kinoplan-payload-{key}",
                                            pure=False)
         last = len(job.steps) - 1
         futures: list = []
@@ -338,7 +341,7 @@ class DaskBackend(SupervisedBackend):
             futures.append(client.submit(
                 run_step, self._queue_name, key, i, job.kind, job.payload_future, step.fn,
                 args, i == last,
-                key=f"kinoplan-{key}-step-{i}", pure=False, retries=0))
+                key=f"kinoplan-{step.fn.__name__}-{key}-{i}", pure=False, retries=0))
         job.futures = futures
         job.tracker = Tracker(job.steps)
         job.starts = [0] * len(job.steps)

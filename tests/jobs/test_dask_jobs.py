@@ -16,10 +16,15 @@ from .conftest import wait_for
 distributed = pytest.importorskip("distributed")
 
 
+def local_cluster():
+    """Two worker processes of one thread; the dashboard on a free port."""
+    return distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                    dashboard_address="127.0.0.1:0", host="127.0.0.1")
+
+
 @pytest.fixture(scope="module")
 def cluster():
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None, host="127.0.0.1") as c:
+    with local_cluster() as c:
         yield c
 
 
@@ -89,7 +94,15 @@ def test_time_limit(dask_client):
     assert wait_for(dask_client, submit(dask_client, "echo", value=5))["status"] == "succeeded"
 
 
-def test_one_job_spreads_over_both_workers(cluster, tmp_path, monkeypatch):
+@pytest.fixture
+def fresh_cluster():
+    """A cluster that has run nothing yet (the scheduler knows no task's duration)."""
+    with local_cluster() as c:
+        yield c
+
+
+def test_one_job_spreads_over_both_workers(fresh_cluster, tmp_path, monkeypatch):
+    """Also the first job of a cluster: its steps are not kept where its payload is."""
     from app.jobs.graph import run_inline
     from app.jobs.kinds import KINDS
 
@@ -97,7 +110,7 @@ def test_one_job_spreads_over_both_workers(cluster, tmp_path, monkeypatch):
     from .test_job_graph_backends import overlapping
 
     monkeypatch.setitem(KINDS, graph_kinds.NAME, graph_kinds.KIND)
-    address = cluster.scheduler_address.removeprefix("tcp://")
+    address = fresh_cluster.scheduler_address.removeprefix("tcp://")
     settings = Settings(no_viewer=True, data_dir=tmp_path, jobs_backend=f"dask://{address}")
     with TestClient(create_app(settings)) as client:
         assert client.get("/health").json()["jobs"]["workers"] == 2
