@@ -50,6 +50,7 @@ __all__ = [
     "part_cells",
     "assemble",
     "returned_indices",
+    "pass2_work",
     "DEFAULT_SAMPLES",
     "MAX_SAMPLES",
     "PART",
@@ -66,6 +67,9 @@ PART = 1_000_000
 #: ``sample_workspace`` keeps the first pass's points for the second up to this many samples
 #: (24 bytes each); above, it computes them again, as a job's steps do.
 KEEP_POINTS = 2_000_000
+#: Work of a sample in the second pass relative to the first (FK and extents), measured on
+#: a six-joint arm: by (projections counted, the first pass's points kept).
+_PASS2_WORK = {(True, False): 1.6, (False, False): 0.9, (True, True): 0.6, (False, True): 0.3}
 #: Voxel edge used when none is given: the largest extent divided by this.
 AUTO_VOXEL_DIVISIONS = 30
 #: Largest voxel edge accepted (mm): a kilometre, far beyond any arm.
@@ -179,6 +183,12 @@ def _part_size(part: int | None) -> int:
     return size
 
 
+def pass2_work(projections: bool, kept: bool = False) -> float:
+    """Work of a sample in ``part_cells`` relative to ``part_bounds`` (progress weights):
+    with or without the projections, with the points kept from pass 1 or computed again."""
+    return _PASS2_WORK[bool(projections), bool(kept)]
+
+
 def _tool_points(model: RobotModel, seed: int, start: int, stop: int,
                  progress: Progress | None = None) -> Iterator[tuple[int, np.ndarray]]:
     """``(first sample, tool positions (n, 3))`` of samples ``[start, stop)`` in FK batches
@@ -187,14 +197,11 @@ def _tool_points(model: RobotModel, seed: int, start: int, stop: int,
     bits = np.random.PCG64(seed)  # default_rng(seed)'s bit generator
     bits.advance(start * model.dof)  # one 64-bit draw per uniform value
     rng = np.random.Generator(bits)
-    s = start
-    while s < stop:
-        e = min(stop, (s // CHUNK + 1) * CHUNK)
+    for s, e in _batches(start, stop):
         q = rng.uniform(model.lower, model.upper, size=(e - s, model.dof))
         yield s, fk(model, q)[:, :3, 3]
-        s = e
         if progress is not None:
-            progress((s - start) / max(stop - start, 1))
+            progress((e - start) / max(stop - start, 1))
 
 
 def _radial_vertical(model: RobotModel, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -314,8 +321,7 @@ def part_cells(model: RobotModel, grid: WorkspaceGrid, index: int, projections: 
     returned = np.empty((len(mine), 3))
     if points is not None:
         batches: Iterator[tuple[int, np.ndarray]] = (
-            (s, points[s - start : min(stop, (s // CHUNK + 1) * CHUNK) - start])
-            for s in _batch_starts(start, stop))
+            (s, points[s - start : e - start]) for s, e in _batches(start, stop))
     else:
         batches = _tool_points(model, grid.seed, start, stop, progress)
     at = 0
@@ -330,11 +336,13 @@ def part_cells(model: RobotModel, grid: WorkspaceGrid, index: int, projections: 
     return PartCells(merged, counts, returned)
 
 
-def _batch_starts(start: int, stop: int) -> Iterator[int]:
+def _batches(start: int, stop: int) -> Iterator[tuple[int, int]]:
+    """FK batches ``[s, e)`` of samples ``[start, stop)``: cut at multiples of ``CHUNK``."""
     s = start
     while s < stop:
-        yield s
-        s = min(stop, (s // CHUNK + 1) * CHUNK)
+        e = min(stop, (s // CHUNK + 1) * CHUNK)
+        yield s, e
+        s = e
 
 
 def assemble(grid: WorkspaceGrid, parts: Sequence[PartCells], projections: bool = True
@@ -380,8 +388,7 @@ def sample_workspace(
     _check_voxel(voxel)
     n_parts = part_count(samples)
     keep = samples <= KEEP_POINTS
-    # the second pass's work relative to the first (FK and extents), on a six-joint arm
-    w1, w2 = 1.0, (0.6 if keep else 1.6) if projections else (0.3 if keep else 0.9)
+    w1, w2 = 1.0, pass2_work(projections, keep)
     total = samples * (w1 + w2)
 
     def sub(done: float, weight: float, n: int) -> Progress | None:

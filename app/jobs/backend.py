@@ -72,6 +72,10 @@ class SupervisedBackend:
         """Job steps run at once."""
         return self.workers
 
+    def unavailable(self) -> str | None:
+        """Why jobs cannot be taken now (a cluster out of reach); None: they can."""
+        return None
+
     def alive(self) -> bool:
         return self._thread is not None and self._thread.is_alive()
 

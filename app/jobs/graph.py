@@ -13,11 +13,15 @@ Progress: step ``i`` reporting ``f`` counts as ``f * weight`` of the job's summe
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["Ref", "Step", "resolve", "refs_of", "run_inline", "whole", "Tracker"]
+__all__ = ["Ref", "Step", "resolve", "refs_of", "run_inline", "whole", "Tracker", "throttled"]
+
+#: Longest progress message a step sends.
+MAX_MESSAGE = 200
 
 
 @dataclass(frozen=True)
@@ -112,6 +116,22 @@ class Tracker:
 
     def fraction(self) -> float:
         return sum(w * f for w, f in zip(self.weights, self.fractions)) / self.total
+
+
+def throttled(send: Callable[[float, str], None], every_s: float
+              ) -> Callable[[float, str], None]:
+    """A step's ``progress(fraction, message)`` that calls ``send`` at most every ``every_s``
+    (and always at the end, fraction 1), the fraction within [0, 1] and the message cut to
+    ``MAX_MESSAGE`` characters: what a step's process sends to its supervisor."""
+    last = [-float("inf")]
+
+    def progress(fraction: float, message: str) -> None:
+        now = time.monotonic()
+        if now - last[0] >= every_s or fraction >= 1.0:
+            last[0] = now
+            send(min(max(float(fraction), 0.0), 1.0), str(message)[:MAX_MESSAGE])
+
+    return progress
 
 
 def run_inline(steps: Sequence[Step], params: Any,

@@ -390,9 +390,6 @@ class WorkspaceResult(Result):
         "Occupancy images 'xy', 'xz', 'yz' (absent unless asked for)")
 
 
-#: Work of a sample in the second pass relative to the first (FK and extents), with and
-#: without the projection counts (measured on a six-joint arm).
-_WS_PASS2, _WS_PASS2_BARE = 1.6, 0.9
 #: Work of merging the extents (choosing the returned samples), of the final assembly and
 #: of each returned point in it, as samples' worth of the first pass.
 _WS_MERGE, _WS_FINAL, _WS_POINT = 50_000, 300_000, 7
@@ -403,7 +400,7 @@ def workspace_graph(params: WorkspaceParams) -> list[Step]:
     (``kinematics.workspace.PART`` samples); else per part the extents, a merge (voxel,
     returned samples), per part the cells, projection counts and returned points, and the
     result (``kinematics.workspace``'s passes)."""
-    from kinematics.workspace import part_count, part_range
+    from kinematics.workspace import part_count, part_range, pass2_work
 
     from .graph import Ref
 
@@ -411,7 +408,7 @@ def workspace_graph(params: WorkspaceParams) -> list[Step]:
     if n == 1:
         return [Step(workspace_whole)]
     sizes = [b - a for a, b in (part_range(params.samples, k) for k in range(n))]
-    pass2 = _WS_PASS2 if params.projections else _WS_PASS2_BARE
+    pass2 = pass2_work(params.projections)
     steps = [Step(workspace_bounds_step, (k,), weight=sizes[k], label=f"part {k + 1} of {n}")
              for k in range(n)]
     steps.append(Step(workspace_grid_step, ([Ref(k) for k in range(n)],), weight=_WS_MERGE,

@@ -29,7 +29,7 @@ from typing import Any
 from ..store import JobRecord, Store
 from . import catalog
 from .backend import SupervisedBackend
-from .graph import Step, Tracker, refs_of, resolve
+from .graph import Step, Tracker, refs_of, resolve, throttled
 from .kinds import JobCancelled, load_job
 
 __all__ = ["LocalBackend"]
@@ -38,6 +38,8 @@ log = logging.getLogger(__name__)
 
 #: Seconds between supervisor passes when nothing happens.
 POLL_S = 0.05
+#: Least seconds between two progress messages of a step's process.
+PROGRESS_EVERY_S = 0.05
 #: Seconds a cancelled job gets to exit after SIGTERM before SIGKILL.
 TERMINATE_GRACE_S = 0.5
 
@@ -47,14 +49,7 @@ def _child_main(conn: Connection, kind: str, payload: dict, fn: Any, args: tuple
     """Body of a worker process: run one step, send progress and its value down ``conn``."""
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C in a terminal is the service's
-    last = [0.0]
-
-    def progress(fraction: float, message: str) -> None:
-        now = time.monotonic()
-        if now - last[0] >= 0.05 or fraction >= 1.0:
-            last[0] = now
-            conn.send(("progress", min(max(float(fraction), 0.0), 1.0), str(message)[:200]))
-
+    progress = throttled(lambda f, m: conn.send(("progress", f, m)), PROGRESS_EVERY_S)
     try:
         job_kind, params = load_job(kind, payload)
         value = fn(params, *args, progress)

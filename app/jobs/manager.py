@@ -129,8 +129,7 @@ class JobManager:
     # ---- requests -------------------------------------------------------------------------
     def unavailable(self) -> str | None:
         """Why the backend takes no jobs now (its cluster is unreachable); None: it does."""
-        check = getattr(self.backend, "unavailable", None)
-        return check() if check is not None else None
+        return None if self.backend is None else self.backend.unavailable()
 
     def submit(self, kind: str, params: dict[str, Any], time_limit_s: float | None = None,
                max_time_limit_s: float | None = None) -> JobRecord:

@@ -418,22 +418,23 @@ def motion_part(params: MotionParams, first: int, end: int, progress: Progress
 def motion_result(params: MotionParams, parts: list, progress: Progress) -> Any:
     """The batch's result: every part's problems, in order, and their summary."""
     results = [r for part in parts for r in part]
-    model = params.robot_model()
     progress(1.0, "done")
-    return MotionJobResult(robot=model.id, joints=[j.name for j in model.joints],
-                           problems=results, summary=summarize(results))
+    return MotionJobResult(**_head(params), problems=results, summary=summarize(results))
+
+
+def _head(params: MotionParams) -> dict[str, Any]:
+    model = params.robot_model()
+    return {"robot": model.id, "joints": [j.name for j in model.joints]}
 
 
 def motion_whole(params: MotionParams, progress: Progress) -> Any:
     """One problem, or a small batch, in one step."""
     n = 1 if params.problems is None else len(params.problems)
     results = _plan(params, 0, n, progress)
+    if params.problems is not None:
+        return motion_result(params, [results], progress)
     progress(1.0, "done")
-    model = params.robot_model()
-    head = {"robot": model.id, "joints": [j.name for j in model.joints]}
-    if params.problems is None:
-        return MotionJobResult(**head, **results[0])
-    return MotionJobResult(**head, problems=results, summary=summarize(results))
+    return MotionJobResult(**_head(params), **results[0])
 
 
 def run_motion(params: MotionParams, progress: Progress) -> Any:

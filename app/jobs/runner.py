@@ -115,14 +115,10 @@ class Runner:
             except (EOFError, OSError):
                 code = self.process.wait()
                 raise RunnerDied(f"the step's process died (exit code {code})") from None
-            if msg is None:
-                if should_stop():
-                    self.kill()
-                    raise StepCancelled("cancelled")
-                continue
-            tag = msg[0]
-            if tag == "progress":
-                progress(msg[1], msg[2])
+            tag = None if msg is None else msg[0]
+            if tag is None or tag == "progress":
+                if tag is not None:
+                    progress(msg[1], msg[2])
                 if should_stop():
                     self.kill()
                     raise StepCancelled("cancelled")
@@ -233,6 +229,7 @@ def child_main(fd: int) -> None:
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
     conn = Connection(fd)
     from . import warm_kernels  # noqa: F401 - every kind registered, kernels loaded
+    from .graph import throttled
     from .kinds import JobCancelled, load_job
 
     conn.send(("ready",))
@@ -243,15 +240,7 @@ def child_main(fd: int) -> None:
         except (EOFError, OSError):
             return
         _, job_key, kind_name, payload, fn, args, final = msg
-        last = [0.0]
-
-        def progress(fraction: float, message: str, last: list = last) -> None:
-            now = time.monotonic()
-            if now - last[0] >= PROGRESS_EVERY_S or fraction >= 1.0:
-                last[0] = now
-                conn.send(("progress", min(max(float(fraction), 0.0), 1.0),
-                           str(message)[:200]))
-
+        progress = throttled(lambda f, m: conn.send(("progress", f, m)), PROGRESS_EVERY_S)
         try:
             if payload is not None or loaded is None or loaded[0] != job_key:
                 if payload is None:

@@ -148,6 +148,11 @@ class SearchRun:
     records: tuple[tuple[int, float, np.ndarray | None], ...]
     seconds: float
 
+    def as_with(self, left: int) -> bool:
+        """Whether the run is the one the search makes when ``left`` kicks are left for it:
+        the same cap, or a stop (stall, time limit) before it had run ``left`` kicks."""
+        return self.cap == left or (self.stop != "cap" and self.kicks < left)
+
 
 @dataclass(frozen=True)
 class Auto:
@@ -354,7 +359,7 @@ class Auto:
             if used and done >= total:
                 return None
             left = total - done
-            if run.cap == left or (run.stop != "cap" and run.kicks < left):
+            if run.as_with(left):
                 if run.stop == "time limit":
                     return None
                 done += run.kicks
@@ -433,8 +438,7 @@ class Auto:
                 break
             left = total - done
             run = runs[used] if used < len(runs) else None
-            if run is None or run.index != used or not (
-                    run.cap == left or (run.stop != "cap" and run.kicks < left)):
+            if run is None or run.index != used or not run.as_with(left):
                 run = self.search_run(problem, seed, used, left, clock=clock)
                 seconds += run.seconds
             records = {i: (length, order) for i, length, order in run.records}

@@ -148,7 +148,7 @@ def test_health_answers_when_the_store_check_hangs(client, monkeypatch):
                      unavailable=lambda: "the Dask scheduler at tcp://h:1 is unreachable"),
      "Dask scheduler at tcp://h:1 is unreachable"),
     (SimpleNamespace(name="local", alive=lambda: True, failing="StoreError: x",
-                     parallelism=lambda: 2),
+                     unavailable=lambda: None, parallelism=lambda: 2),
      "failing"),
 ])
 def test_health_names_a_job_backend_that_does_not_work(client, backend, words):
