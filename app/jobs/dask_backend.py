@@ -55,6 +55,12 @@ DEFAULT_DEADLINE_S = 600.0
 CANCEL_CHECK_S = 0.2
 
 
+def _task_name(step: Step) -> str:
+    """The step's function as words of a task key: ``workspace_bounds_step`` ->
+    ``workspace-bounds-step``."""
+    return "-".join(w for w in step.fn.__name__.split("_") if w) or "step"
+
+
 def _cancel_name(job_key: str) -> str:
     """The job's cancel event on the scheduler."""
     return f"kinoplan-cancel-{job_key}"
@@ -329,9 +335,10 @@ class DaskBackend(SupervisedBackend):
             job.deadline = self._deadline(job.time_limit_s)  # a new attempt's time limit
         client = self.client
         key = job.key
-        # Task keys begin with what the task does: Dask keeps its estimate of a task's
-        # duration by that prefix, and a step estimated as long as the payload (nothing)
-        # would stay on the worker holding the payload instead of spreading.
+        # Task keys begin with what the task does, in words of letters (Dask keeps its
+        # estimate of a task's duration by the key's leading words, dask.utils.key_split):
+        # a step estimated as short as the payload would stay on the worker holding the
+        # payload instead of spreading.
         job.payload_future = client.submit(_payload, job.payload, key=f"kinoplan-payload-{key}",
                                            pure=False)
         last = len(job.steps) - 1
@@ -341,7 +348,7 @@ class DaskBackend(SupervisedBackend):
             futures.append(client.submit(
                 run_step, self._queue_name, key, i, job.kind, job.payload_future, step.fn,
                 args, i == last,
-                key=f"kinoplan-{step.fn.__name__}-{key}-{i}", pure=False, retries=0))
+                key=f"kinoplan-{_task_name(step)}-{key}-{i}", pure=False, retries=0))
         job.futures = futures
         job.tracker = Tracker(job.steps)
         job.starts = [0] * len(job.steps)

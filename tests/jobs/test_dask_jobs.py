@@ -119,6 +119,9 @@ def test_one_job_spreads_over_both_workers(fresh_cluster, tmp_path, monkeypatch)
         assert job["status"] == "succeeded", job
         assert job["attempts"] == 1
         result = client.get(f"/jobs/{job_id}/result").json()
+    # The scheduler knows the parts' durations apart from the rest (the key's words).
+    prefixes = fresh_cluster.scheduler.task_prefixes
+    assert {"kinoplan-part", "kinoplan-merge", "kinoplan-payload"} <= set(prefixes)
     worker_pids = {p["ppid"] for p in result["parts"]}
     assert len(worker_pids) == 2 and os.getpid() not in worker_pids
     assert overlapping(result["parts"]) == 2
