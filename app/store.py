@@ -619,7 +619,11 @@ class Store:
                 (job_id, kind, json.dumps(params), json.dumps(payload), now_iso(),
                  time_limit_s),
             )
-        return self.get_job(job_id)
+            # Read in the same transaction: the record as written, before a worker can
+            # claim the job (the answer of POST /jobs is 'queued').
+            row = conn.execute(f"SELECT {_JOB_COLUMNS} FROM jobs WHERE id = ?",
+                               (job_id,)).fetchone()
+        return _job(row)
 
     def get_job(self, job_id: str) -> JobRecord:
         """The job ``job_id``; KeyError if there is none."""

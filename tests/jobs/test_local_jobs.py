@@ -277,3 +277,19 @@ def test_hundred_jobs_from_ten_clients(tmp_path):
         assert sorted(listed) == sorted(flat)  # none lost, none duplicated
     finally:
         svc.stop()
+
+
+
+def test_a_new_job_is_answered_queued_even_when_a_worker_claims_it_at_once(tmp_path):
+    """The record POST /jobs answers is the one written (status queued), whatever a busy
+    supervisor does once the job is in the store (here: claims it the moment it can)."""
+    from app.store import Store
+
+    class EagerWorkerStore(Store):
+        def get_job(self, job_id):
+            self.claim_next_job()  # the supervisor gets in before any read
+            return super().get_job(job_id)
+
+    store = EagerWorkerStore.in_data_dir(tmp_path)
+    assert store.add_job("j0", "echo", {}, {"params": {}}).status == "queued"
+    assert store.get_job("j0").status == "running"
