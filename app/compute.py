@@ -19,7 +19,6 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
-import multiprocessing
 import pickle
 import threading
 from collections.abc import Callable
@@ -28,6 +27,8 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from starlette.concurrency import run_in_threadpool
+
+from .lifetime import forkserver_context
 
 __all__ = ["ComputePool", "ComputeBusy", "ComputeFailed", "encode_json"]
 
@@ -97,8 +98,9 @@ class ComputePool:
     def _pool(self) -> ProcessPoolExecutor:
         with self._lock:
             if self._executor is None:
-                ctx = multiprocessing.get_context("forkserver")
-                self._executor = ProcessPoolExecutor(self.workers, mp_context=ctx,
+                # Workers die with the service, even a killed one (app.lifetime).
+                self._executor = ProcessPoolExecutor(self.workers,
+                                                     mp_context=forkserver_context(),
                                                      initializer=_warm)
             return self._executor
 

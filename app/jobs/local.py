@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
+from ..lifetime import forkserver_context
 from ..store import JobRecord, Store
 from . import catalog
 from .backend import SupervisedBackend
@@ -109,11 +110,11 @@ class LocalBackend(SupervisedBackend):
 
     def __init__(self, store: Store, workers: int) -> None:
         super().__init__(store, workers)
-        self._ctx = multiprocessing.get_context("forkserver")
-        # Workers fork from a server that has already imported what jobs use.
+        # Workers fork from a server that has already imported what jobs use; they and the
+        # server die with the service, even a killed one (app.lifetime).
         # "__main__": a child does not run the main script again (a service embedded in a
         # user's script would otherwise re-run it before every step).
-        self._ctx.set_forkserver_preload(
+        self._ctx = forkserver_context(
             ["__main__", "numpy", "scipy", "scipy.optimize", "scipy.interpolate",
              "scipy.sparse", catalog.__name__, "app.jobs.warm_kernels"]
         )

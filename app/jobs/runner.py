@@ -8,7 +8,7 @@ takes steps one at a time over a socket: ``run`` loads the job's params (kept fo
 step of the same job), calls the step and sends back progress and its value. ``Runner.kill``
 ends the process at once (SIGKILL): its CPU is free the moment the cancel is seen, and the next
 step starts a fresh runner. A runner dies with the worker (Linux ``PR_SET_PDEATHSIG``, and a
-watchdog thread that exits when the worker is gone).
+watchdog thread that exits when the worker is gone: ``app.lifetime``).
 """
 
 from __future__ import annotations
@@ -16,18 +16,18 @@ from __future__ import annotations
 import logging
 import os
 import pickle
-import queue
 import signal
 import socket
 import subprocess
 import sys
 import threading
-import time
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import Future
 from multiprocessing.connection import Connection
 from typing import Any
+
+from ..lifetime import die_with_parent, spawn
 
 __all__ = ["Runner", "StepFailed", "StepCancelled", "take_runner", "give_back", "prestart"]
 
@@ -134,50 +134,14 @@ class Runner:
                 raise RunnerDied(f"unexpected message from the step runner: {tag!r}")
 
 
-def _die_with_parent(parent: int) -> None:
-    """In the child: SIGKILL when the thread that started it exits (Linux); exit now if
-    that happened already."""
-    try:
-        import ctypes
-
-        libc = ctypes.CDLL("libc.so.6", use_errno=True)
-        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):  # not Linux: the watchdog thread is the fallback
-        pass
-    if os.getppid() != parent:
-        os._exit(1)
-
-
 # ---- a pool of runners per worker process ----------------------------------------------
 #: Runners waiting for a step: each a Future, done (idle) or still starting (prestarted).
 _POOL: deque[Future] = deque()
 _POOL_LOCK = threading.Lock()
-_REQUESTS: queue.SimpleQueue = queue.SimpleQueue()
-_FACTORY: list[threading.Thread] = []
-
-
-def _factory() -> None:
-    """Start runners on request. One long-lived thread starts them all, because a child's
-    ``PR_SET_PDEATHSIG`` fires when the *thread* that started it ends."""
-    while True:
-        done = _REQUESTS.get()
-        try:
-            runner = Runner()
-        except BaseException as exc:  # noqa: BLE001 - handed to whoever asked
-            done.set_exception(exc)
-        else:
-            done.set_result(runner)
 
 
 def _new_runner() -> Future:
-    with _POOL_LOCK:
-        if not _FACTORY:
-            thread = threading.Thread(target=_factory, name="kinoplan-runners", daemon=True)
-            thread.start()
-            _FACTORY.append(thread)
-    done: Future = Future()
-    _REQUESTS.put(done)
-    return done
+    return spawn(Runner)
 
 
 def take_runner() -> Runner:
@@ -214,19 +178,11 @@ def prestart(count: int) -> None:
 
 
 # ---- the child ------------------------------------------------------------------------
-def _watch_parent(parent: int) -> None:
-    while True:
-        time.sleep(0.5)
-        if os.getppid() != parent:
-            os._exit(1)
-
-
 def child_main(fd: int) -> None:
     """The child's loop: take ``run`` messages until the socket closes."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C in a terminal is the worker's
     parent = int(os.environ.get("KINOPLAN_RUNNER_PARENT", os.getppid()))
-    _die_with_parent(parent)
-    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    die_with_parent(parent)
     conn = Connection(fd)
     from . import warm_kernels  # noqa: F401 - every kind registered, kernels loaded
     from .graph import throttled

@@ -30,8 +30,8 @@ import psutil
 
 from .conftest import REPO, free_port
 
-__all__ = ["Cluster", "DASK", "cpu_by_process", "cpu_seconds", "descendants", "hang_guard",
-           "wait_gone"]
+__all__ = ["Cluster", "DASK", "cpu_by_process", "cpu_seconds", "describe", "descendants",
+           "hang_guard", "kill_tree", "process_group", "wait_gone"]
 
 HOST = "127.0.0.1"
 #: The ``dask`` command next to the interpreter running the tests.
@@ -48,7 +48,7 @@ def _env(extra: dict[str, str] | None = None) -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": path, **(extra or {})}
 
 
-def _group(pgid: int) -> list[psutil.Process]:
+def process_group(pgid: int) -> list[psutil.Process]:
     """The live processes of process group ``pgid`` (a group id is not reused while it has
     members, so this never reaches a stranger)."""
     members = []
@@ -59,12 +59,12 @@ def _group(pgid: int) -> list[psutil.Process]:
     return members
 
 
-def _kill_tree(proc: subprocess.Popen, grace: float = 0.0) -> list[str]:
+def kill_tree(proc: subprocess.Popen, grace: float = 0.0) -> list[str]:
     """SIGKILL the process group ``proc`` leads and any descendant that left it, after
     ``grace`` seconds for the processes to end on their own; reap ``proc``. The command lines
     of the processes that had not ended by then, other than ``proc``."""
     # Descendants only of a live (so not reaped) leader: a reaped pid may be someone else's.
-    doomed = {*_group(proc.pid), *(descendants(proc.pid) if proc.poll() is None else [])}
+    doomed = {*process_group(proc.pid), *(descendants(proc.pid) if proc.poll() is None else [])}
     alive = wait_gone(doomed, grace) if grace else list(doomed)
     for p in alive:
         with contextlib.suppress(psutil.Error):
@@ -72,10 +72,10 @@ def _kill_tree(proc: subprocess.Popen, grace: float = 0.0) -> list[str]:
     with contextlib.suppress(subprocess.TimeoutExpired):
         proc.wait(timeout=10)
     psutil.wait_procs(alive, timeout=5)
-    return [_describe(p) for p in alive if p.pid != proc.pid]
+    return [describe(p) for p in alive if p.pid != proc.pid]
 
 
-def _describe(p: psutil.Process) -> str:
+def describe(p: psutil.Process) -> str:
     try:
         return f"{p.pid}: {' '.join(p.cmdline())[:200]}"
     except psutil.Error:
@@ -139,7 +139,7 @@ class Cluster:
         """SIGKILL the scheduler (as a crash or an OOM kill would)."""
         with self._lock:
             if self.scheduler is not None and self.scheduler in self._spawned:
-                _kill_tree(self.scheduler)
+                kill_tree(self.scheduler)
                 self._spawned.remove(self.scheduler)
 
     def _start_worker(self) -> subprocess.Popen:
@@ -164,7 +164,7 @@ class Cluster:
         """Kill every process of the cluster (also at exit, should a finalizer not run)."""
         with self._lock:
             while self._spawned:
-                _kill_tree(self._spawned.pop())
+                kill_tree(self._spawned.pop())
 
     def logs(self, name: str = "", lines: int = 15) -> str:
         """The last ``lines`` of each log whose file name has ``name`` (for failure messages)."""
@@ -281,7 +281,7 @@ def cpu_by_process(pids: Iterable[int], window: float = 0.5) -> dict[int, dict[s
     out = {}
     for pid in pids:
         then = before[pid]
-        out[pid] = {_describe(p)[:80]: round(t - then.get(p, 0.0), 3)
+        out[pid] = {describe(p)[:80]: round(t - then.get(p, 0.0), 3)
                     for p, t in _tree_times(pid).items()}
     return out
 
