@@ -65,6 +65,9 @@ def simplify_errors(errors: Sequence[dict]) -> list[dict]:
     for e in errors:
         loc = list(e.get("loc", []))
         item = {"loc": loc, "msg": e.get("msg", ""), "type": e.get("type", "")}
+        why = (e.get("ctx") or {}).get("error")
+        if item["type"] == "json_invalid" and why:
+            item["msg"] = f"{item['msg']}: {why}"   # why, not only that it failed
         tag_at = next((i for i, part in enumerate(loc) if _is_branch_tag(part)), None)
         if tag_at is None:
             plain.append(item)

@@ -44,6 +44,8 @@ __all__ = [
     "answer",
     "dumps",
     "legacy",
+    "loads_json",
+    "MAX_JSON_DEPTH",
     "npy_bytes",
     "MISSING",
     "body_schema",
@@ -120,15 +122,37 @@ NPY_RESPONSE: dict[int | str, dict[str, Any]] = {
 }
 
 
-def _loads(body: bytes) -> Any:
+#: Deepest nesting of arrays and objects a JSON body may have (orjson's own limit; the
+#: deepest document the API takes is a few levels).
+MAX_JSON_DEPTH = 1024
+
+
+def _too_deep(text: bytes | str, pos: int = 0) -> json.JSONDecodeError:
+    doc = text if isinstance(text, str) else text[:200].decode("utf-8", "replace")
+    return json.JSONDecodeError(f"arrays and objects nested deeper than {MAX_JSON_DEPTH} "
+                                "levels", doc, min(pos, len(doc)))
+
+
+def loads_json(body: bytes | str) -> Any:
     """JSON ``body`` decoded by orjson, or by the standard library where orjson refuses it
-    (``json.JSONDecodeError`` when neither reads it)."""
-    if legacy:
-        return json.loads(body)
+    (``NaN`` and ``Infinity`` tokens); the one reader of JSON that comes with a request.
+    ``json.JSONDecodeError`` (a ``ValueError``) when neither reads it, nesting deeper than
+    ``MAX_JSON_DEPTH`` included (the standard library would recurse until Python's stack
+    limit instead)."""
     try:
-        return orjson.loads(body)
-    except orjson.JSONDecodeError:
-        return json.loads(body)
+        if legacy:
+            return json.loads(body)
+        try:
+            return orjson.loads(body)
+        except orjson.JSONDecodeError as exc:
+            if "depth" in exc.msg:
+                raise _too_deep(body, exc.pos) from None
+            return json.loads(body)
+    except RecursionError:
+        raise _too_deep(body) from None
+
+
+_loads = loads_json
 
 
 class _Missing:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import io
-import json
 import math
 import zipfile
 from typing import Annotated, Any
@@ -17,6 +16,7 @@ from kinematics.urdf import imported_to_archive, imported_to_urdf, to_urdf
 
 from ...compute import ComputePool
 from ...registry import ReadOnlyRobotError, RobotConflictError
+from ...responses import loads_json
 from ..deps import RegistryDep, RobotDep
 from ..errors import conflict, forbidden, invalid, not_found, too_large
 from ..schemas import JointSummary, RobotSummary
@@ -109,7 +109,7 @@ async def model_body(request: Request) -> Any:
             raise too_large([], cap)
         chunks.append(chunk)
     try:
-        return json.loads(b"".join(chunks))
+        return loads_json(b"".join(chunks))
     except (ValueError, RecursionError) as exc:  # JSONDecodeError, UnicodeDecodeError
         raise invalid([], f"body is not valid JSON: {exc}") from None
 
@@ -229,7 +229,7 @@ def _fixed_joints(text: str | None) -> dict[str, float] | None:
     if text is None or not text.strip():
         return None
     try:
-        value = json.loads(text)
+        value = loads_json(text)
     except ValueError as exc:
         raise invalid(["fixed_joints"], f"must be a JSON object name -> value: {exc}") from None
     if not isinstance(value, dict) or len(value) > MAX_DOF * 8:

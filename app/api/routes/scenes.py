@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import json
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, File, Form, Path, Query, Request, Response, UploadFile
 
 from ...jobs.caps import ParamsLimitError, check_params
+from ...responses import loads_json
 from ...scenes import MeshInUseError, SceneConflictError, SceneRegistry
 from ..errors import conflict, http_error, invalid, not_found, too_large
 
@@ -46,7 +46,7 @@ async def json_body(request: Request, cap: int, depth: int) -> Any:
             raise too_large([], f"a body here is at most {cap} bytes")
         chunks.append(chunk)
     try:
-        data = json.loads(b"".join(chunks))
+        data = loads_json(b"".join(chunks))
     except (ValueError, RecursionError) as exc:
         raise invalid([], f"body is not valid JSON: {exc}") from None
     try:
