@@ -44,7 +44,13 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from kinematics.errors import FieldError
-from planning.motion import DEFAULT_RESOLUTION, MAX_RESOLUTION, PLANNERS, MotionStatus
+from planning.motion import (
+    DEFAULT_RESOLUTION,
+    MAX_RESOLUTION,
+    MIN_RESOLUTION,
+    PLANNERS,
+    MotionStatus,
+)
 from planning.motion.request import (
     DEFAULT_TIME_LIMIT_S,
     MAX_MARGIN_MM,
@@ -123,9 +129,10 @@ class MotionSettings(StrictModel):
                              "time_limit; 'auto': RRT-Connect, refined by RRT* when the "
                              "time limit is long")
     seed: int = Field(0, ge=0, le=MAX_SEED)
-    resolution: float = Field(DEFAULT_RESOLUTION, gt=0, le=MAX_RESOLUTION,
+    resolution: float = Field(DEFAULT_RESOLUTION, ge=MIN_RESOLUTION, le=MAX_RESOLUTION,
                               description="Largest joint step between checked states along "
-                              "an edge, rad (x 100 mm for prismatic joints)")
+                              "an edge, rad (x 100 mm for prismatic joints); at least "
+                              f"{MIN_RESOLUTION:g} rad ({MIN_RESOLUTION * 100:g} mm)")
     simplify: bool = Field(True, description="Shortcut and smooth the path found")
     self_collision: bool = Field(True, description="Check the robot against itself too")
     margin: float = Field(0.0, ge=0, le=MAX_MARGIN_MM,

@@ -10,6 +10,7 @@ from .checker import DEFAULT_RESOLUTION, PRISMATIC_SCALE, PRISMATIC_STEP, Motion
 from .planner import (
     MAX_RESOLUTION,
     MAX_TIME_LIMIT,
+    MIN_RESOLUTION,
     PLANNERS,
     MotionResult,
     MotionStatus,
@@ -19,4 +20,4 @@ from .warm import start_warm_up, warm_up
 
 __all__ = ["MotionChecker", "MotionResult", "MotionStatus", "plan_motion", "PLANNERS",
            "DEFAULT_RESOLUTION", "PRISMATIC_SCALE", "PRISMATIC_STEP", "MAX_RESOLUTION",
-           "MAX_TIME_LIMIT", "warm_up", "start_warm_up"]
+           "MIN_RESOLUTION", "MAX_TIME_LIMIT", "warm_up", "start_warm_up"]

@@ -6,7 +6,11 @@ process), nearest neighbours, edge checks (``planning.motion._kernels.check_stat
 state, in bisection order) and path simplification. A state the sphere stage flags counts as a
 collision with ``mode[0] == 0`` (the spheres contain the robot, so every edge kept is free);
 with ``mode[0] == 1`` the exact stage (FCL, in Python through ``objmode``: the checker of
-the calling thread) settles it, and ``mode[1]`` counts those calls.
+the calling thread) settles it, and ``mode[1]`` counts those calls. With ``mode[2] == 1`` a
+segment check looks at the clock (``_local.deadline``, ``time.perf_counter`` s) every
+``DEADLINE_EVERY`` states; once it has passed, ``mode[3]`` is set and every segment check
+answers "not free" at once: a search or a shortcut then keeps only what it has already
+proved, and ends with its chunk.
 
 ``R`` is the robot's argument tuple and ``S`` the scene's (``MotionChecker``'s ``_robot`` and
 ``_scene``), unpacked by ``_free_state``.
@@ -16,6 +20,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 
 import numpy as np
 from numba import njit, objmode
@@ -26,6 +31,8 @@ from ._kernels import _JIT, _scratch, check_state, frames, link_state, nearest
 RUN_FOUND = 1
 RUN_BUDGET = 0
 RUN_FULL = 2
+#: States checked between two looks at the clock (a few milliseconds of work at most).
+DEADLINE_EVERY = 1024
 
 
 # ---- random numbers -----------------------------------------------------------------------------
@@ -49,6 +56,27 @@ def exact_free(q: np.ndarray) -> bool:
     """The exact stage of a flagged state, for the compiled code (``objmode``): the
     ``MotionChecker`` of this thread's search (``_local.checker``)."""
     return bool(_local.checker._exact_free(np.array(q)))
+
+
+def deadline_passed() -> bool:
+    """Whether this thread's search deadline (``_local.deadline``) has passed."""
+    deadline = getattr(_local, "deadline", None)
+    return deadline is not None and time.perf_counter() >= deadline
+
+
+@njit(cache=True, error_model="numpy", boundscheck=False)   # objmode: no nogil
+def _late(count, mode):
+    """Whether the deadline has passed: remembered in ``mode[3]``, looked up every
+    ``DEADLINE_EVERY`` states while ``mode[2]`` arms it."""
+    if mode[3] != 0:
+        return True
+    if mode[2] == 0 or count[0] % DEADLINE_EVERY != 0:
+        return False
+    with objmode(late="boolean"):
+        late = deadline_passed()
+    if late:
+        mode[3] = 1
+    return late
 
 
 @njit(cache=True, error_model="numpy", boundscheck=False)   # objmode: no nogil
@@ -87,6 +115,8 @@ def _segment_free(R, S, a, b, wt, res, margin, q, work):
     weighted by the step weights in ``work``) are free, taken in bisection order; ``work``
     is the scratch tuple; counts in ``work[-2][0]``."""
     T, F, M, hits, Wr, Wg, Wl, done, all_o, near_r, near_g, sw, count, mode = work
+    if mode[3] != 0:
+        return False
     n = _steps(a, b, sw, res)
     s = 1
     while s * 2 < n:
@@ -97,8 +127,9 @@ def _segment_free(R, S, a, b, wt, res, margin, q, work):
             for j in range(a.shape[0]):
                 q[j] = a[j] + (b[j] - a[j]) * t
             count[0] += 1
-            if not _free_state(R, S, q, margin, T, F, M, hits, Wr, Wg, Wl, done, all_o,
-                               near_r, near_g, mode):
+            if _late(count, mode) or not _free_state(R, S, q, margin, T, F, M, hits, Wr,
+                                                      Wg, Wl, done, all_o, near_r, near_g,
+                                                      mode):
                 return False
         s //= 2
     return True
@@ -113,7 +144,7 @@ def make_work(R, S, sw):
                                                        S[1].shape[0])
     return (np.empty((3, 4)), np.empty((E, 3, 4)), np.empty((L, 3, R[6])),
             np.empty((1, 3), dtype=np.int64), Wr, Wg, Wl, done, all_o, near_r, near_g,
-            sw.copy(), np.zeros(1, dtype=np.int64), np.zeros(2, dtype=np.int64))
+            sw.copy(), np.zeros(1, dtype=np.int64), np.zeros(4, dtype=np.int64))
 
 
 # ---- trees ------------------------------------------------------------------------------------

@@ -14,6 +14,12 @@ revolute joint and ``resolution * PRISMATIC_STEP`` mm on every prismatic one (1 
 default 0.01). In the planners' metric a prismatic joint's ``PRISMATIC_SCALE`` mm count as
 one radian (1 m: as far as a point 1 m from a revolute axis moves).
 
+Deadlines: while ``deadline`` (a ``time.perf_counter`` time) is set, a segment check looks at
+the clock every ``DEADLINE_CHUNK`` states and answers "not free" once it has passed, so a
+search never runs far past its time limit however fine the ``resolution``; "not free" keeps
+every planner conservative (nothing unchecked is ever kept). The planner sets it and clears
+it; the verification helpers (``path_free`` outside a plan, ``clearance``) run without one.
+
 Without numba (``KINOPLAN_JIT=0``), or for a robot whose links the chain layout cannot carry
 (a link moved by a mimic joint), the checks run on ``planning.collision.collides`` instead:
 the same answers, slower.
@@ -22,6 +28,7 @@ the same answers, slower.
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 import numpy as np
@@ -29,7 +36,7 @@ import numpy as np
 from kinematics.errors import FieldError
 
 __all__ = ["MotionChecker", "PRISMATIC_SCALE", "PRISMATIC_STEP", "DEFAULT_RESOLUTION",
-           "bisection_order"]
+           "MIN_RESOLUTION", "bisection_order", "segment_states"]
 
 #: Millimetres of a prismatic joint that count as one radian in the planners' metric.
 PRISMATIC_SCALE = 1000.0
@@ -38,12 +45,45 @@ PRISMATIC_SCALE = 1000.0
 PRISMATIC_STEP = 100.0
 #: Default largest joint step between checked states of a segment (rad).
 DEFAULT_RESOLUTION = 0.01
+#: Finest ``resolution`` accepted (rad; 0.01 mm on prismatic joints): 6e4 states per
+#: radian-long segment, already a thousandth of a degree.
+MIN_RESOLUTION = 1e-4
+#: States of a segment checked between two looks at the deadline.
+DEADLINE_CHUNK = 4096
+#: Segment lengths (states) whose bisection order is kept for reuse, and how many at most.
+_ORDER_CACHE_N = 1 << 16
+_ORDER_CACHE_SIZE = 4096
 #: Most flagged pairs collected for the exact stage of one configuration.
 _HIT_CAP = 256
 #: Scenes with more objects than this are screened by their distance grid.
 GRID_OBJECTS = 24
 #: Largest number of cells of one ball set's grid.
 _SET_CELLS = 1 << 18
+
+
+def segment_states(P: np.ndarray, steps, most: int | None = None) -> np.ndarray:
+    """The states ``(S, dof)`` of the polyline ``P (K, dof)`` with segment ``i`` cut into
+    ``steps[i]`` steps: ``P[0]``, then each segment's ``P[i] + (P[i+1] - P[i]) k / steps[i]``
+    for ``k = 1 .. steps[i]``. With ``most``, at most that many of them, evenly spread over
+    that list (its first and last kept), computed without building the whole list: a fine
+    resolution over a long path asks for millions of states of which a hundred are used."""
+    P = np.asarray(P, dtype=float)
+    steps = np.asarray(steps, dtype=np.int64).reshape(-1)
+    ends = np.cumsum(steps)
+    total = 1 + (int(ends[-1]) if len(ends) else 0)
+    if most is None or total <= most:
+        j = np.arange(total)
+    else:
+        j = np.unique(np.linspace(0, total - 1, most).round().astype(np.int64))
+    out = np.empty((len(j), P.shape[1]))
+    first = j == 0
+    out[first] = P[0]
+    jj = j[~first]
+    seg = np.searchsorted(ends, jj, side="left")
+    n = steps[seg]
+    k = jj - (ends[seg] - n)
+    out[~first] = P[seg] + (P[seg + 1] - P[seg]) * (k / n)[:, None]
+    return out
 
 
 def bisection_order(n: int) -> np.ndarray:
@@ -111,6 +151,9 @@ class MotionChecker:
         self.exact_zone: tuple[np.ndarray, float] | None = None
         self.checks = 0
         self.exact_checks = 0
+        #: ``time.perf_counter`` time after which segment checks answer "not free" (None:
+        #: never); set by the planner for each phase of a plan.
+        self.deadline: float | None = None
         self._orders: dict[int, np.ndarray] = {}
         self._k = _kernels()
         self._robot = self._scene = None
@@ -207,9 +250,14 @@ class MotionChecker:
         order = self._orders.get(n)
         if order is None:
             order = bisection_order(n)
-            if len(self._orders) < 4096:
+            # Only short orders are kept: fine resolutions give many long ones.
+            if n <= _ORDER_CACHE_N and len(self._orders) < _ORDER_CACHE_SIZE:
                 self._orders[n] = order
         return order
+
+    def late(self) -> bool:
+        """Whether the deadline has passed."""
+        return self.deadline is not None and time.perf_counter() >= self.deadline
 
     def segment_free(self, a, b, resolution: float = DEFAULT_RESOLUTION,
                      ends: bool = False) -> bool:
@@ -224,19 +272,31 @@ class MotionChecker:
         if len(order) == 0:
             return True
         if self._k is None:
-            s = order / n
-            Q = a + (b - a) * s[:, None]
-            return bool(np.all(self.free(Q)))
+            for c in range(0, len(order), DEADLINE_CHUNK):
+                if self.late():
+                    return False
+                s = order[c:c + DEADLINE_CHUNK] / n
+                if not bool(np.all(self.free(a + (b - a) * s[:, None]))):
+                    return False
+            return True
         k = self._k
         q = self._q
         start = 0
         r, s = self._robot, self._scene
+        total = len(order)
+        timed = self.deadline is not None
         while True:
-            i = k.segment_first(*r[:7], a, b, n, order, start, self.margin, *r[7:13], *s,
-                                r[13], *r[14:], q)
-            self.checks += i - start + (i < len(order))
-            if i >= len(order):
-                return True
+            end = min(total, start + DEADLINE_CHUNK) if timed else total
+            i = k.segment_first(*r[:7], a, b, n, order[:end], start, self.margin, *r[7:13],
+                                *s, r[13], *r[14:], q)
+            self.checks += i - start + (i < end)
+            if timed and self.late():
+                return False
+            if i >= end:
+                if end == total:
+                    return True
+                start = end
+                continue
             if not self._exact_free(q):
                 return False
             start = i + 1
@@ -269,14 +329,8 @@ class MotionChecker:
         P, _ = self.batch(path)
         if self.scene is None and not (self.self_collision and len(self.cm.pairs)):
             return None
-        states = [P[:1]]
-        for i in range(len(P) - 1):
-            n = self.steps(P[i], P[i + 1], resolution)
-            s = np.arange(1, n + 1) / n
-            states.append(P[i] + (P[i + 1] - P[i]) * s[:, None])
-        Q = np.concatenate(states)
-        if len(Q) > most:
-            Q = Q[np.unique(np.linspace(0, len(Q) - 1, most).round().astype(int))]
+        Q = segment_states(P, [self.steps(P[i], P[i + 1], resolution)
+                               for i in range(len(P) - 1)], most)
         if self._k is None:
             from planning.collision import check
 

@@ -21,6 +21,14 @@ The path is then shortened with the checker that found it (compiled), and checke
 before it is answered. ``auto`` with a time limit past ``AUTO_REFINE_AFTER`` s also hands the
 shortened path to RRT* as the bound to beat until ``AUTO_REFINE_SHARE`` of the time, then
 shortens the best path again. ``rrt_star`` searches with RRT* for the whole time limit.
+
+Time: the search ends by ``time_limit``; simplification has half of it, within what the
+search left (at least ``SIMPLIFY_MIN_S``); the final check, the blend checks of the trajectory
+and the clearance have ``FINISH_S`` more. Each phase sets the checker's deadline, which every
+segment check looks at (``MotionChecker.deadline``): past it a check answers "not free", so a
+phase cut short keeps what it has proved (the path as found, sharp corners) and a plan ends
+within ``time_limit + SIMPLIFY_MIN_S + FINISH_S`` plus one exact check, whatever the
+``resolution`` (at least ``MIN_RESOLUTION``).
 """
 
 from __future__ import annotations
@@ -35,7 +43,7 @@ import numpy as np
 
 from kinematics.errors import FieldError
 
-from .checker import DEFAULT_RESOLUTION, MotionChecker
+from .checker import DEFAULT_RESOLUTION, MIN_RESOLUTION, MotionChecker
 from .search import (
     escape,
     path_length,
@@ -48,13 +56,20 @@ from .search import (
 )
 
 __all__ = ["MotionStatus", "MotionResult", "plan_motion", "PLANNERS", "MAX_RESOLUTION",
-           "MAX_TIME_LIMIT"]
+           "MIN_RESOLUTION", "MAX_TIME_LIMIT"]
 
 PLANNERS = ("auto", "rrt_connect", "rrt_star")
 #: Coarsest joint step allowed between checked states (rad).
 MAX_RESOLUTION = 0.5
 #: Longest time limit of one problem (s).
 MAX_TIME_LIMIT = 3600.0
+#: Least time simplification gets, even when the search used the whole time limit (s) ...
+SIMPLIFY_MIN_S = 0.2
+#: ... and the time of the final check, the trajectory's blend checks and the clearance (s).
+FINISH_S = 0.5
+#: Most states of a trajectory checked for collision (its blends): past it the states are
+#: spread evenly, and a blend whose check cannot finish in ``FINISH_S`` is kept sharp.
+TRAJECTORY_STATES_MAX = 200_000
 #: ``auto`` refines with RRT* when the time limit exceeds this (s) ...
 AUTO_REFINE_AFTER = 10.0
 #: ... for at most this share of the time limit.
@@ -241,7 +256,8 @@ def plan_motion(checker: MotionChecker, start, goal=None, *, goal_pose=None, mod
     if planner not in PLANNERS:
         raise FieldError(("planner",), f"planner must be one of {', '.join(PLANNERS)}")
     time_limit = _number(time_limit, ("time_limit",), 0.0, MAX_TIME_LIMIT)
-    resolution = _number(resolution, ("resolution",), 0.0, MAX_RESOLUTION)
+    resolution = _number(resolution, ("resolution",), MIN_RESOLUTION, MAX_RESOLUTION,
+                         open_low=False)
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
         raise FieldError(("seed",), "seed must be an integer")
     rng = np.random.default_rng(int(seed))
@@ -296,12 +312,14 @@ def plan_motion(checker: MotionChecker, start, goal=None, *, goal_pose=None, mod
             progress(min(1.0, (now - t0) / time_limit))
         return now >= deadline
 
+    checker.deadline = deadline
     try:
         return _search(checker, q_start, goals, planner, rng, stop, resolution, simplify,
                        time_limit, t0, exact, result, trajectory, limits, hydraulics)
     finally:
         checker.exact = exact
         checker.exact_zone = None
+        checker.deadline = None
 
 
 def _sphere_phase(checker: MotionChecker, q_start: np.ndarray, goals: np.ndarray, stop,
@@ -354,9 +372,12 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
     stats["raw_length"] = path_length(path)
     raw = path
     t_simplify = time.perf_counter()
+    # Simplification: half the time limit, within what the search left, at least
+    # SIMPLIFY_MIN_S.
+    s_deadline = t_simplify + max(SIMPLIFY_MIN_S,
+                                  min(0.5 * time_limit, t0 + time_limit - t_simplify))
+    checker.deadline = s_deadline
     if simplify and len(path) > 2:
-        # Simplification gets its own budget: half the time limit, at least 0.2 s.
-        s_deadline = time.perf_counter() + max(0.2, 0.5 * time_limit)
 
         def s_stop() -> bool:
             return time.perf_counter() >= s_deadline
@@ -379,14 +400,17 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
             stats["refine"] = st2
             if better is not None and path_length(better, checker.weights) < \
                     path_length(path, checker.weights):
+                checker.deadline = s_deadline + 1.0
                 path = shortcut(checker, better, rng,
                                 lambda: time.perf_counter() >= s_deadline + 1.0, resolution)
                 used = "rrt_connect+rrt_star"
     checker.exact, checker.exact_zone = exact, None
+    checker.deadline = max(time.perf_counter(), s_deadline) + FINISH_S
     if len(path) != stats["raw_waypoints"] and not checker.path_free(path, resolution):
-        # Never expected (every shortcut checks what it keeps); if it happens, the path as
-        # found (every edge checked at ``resolution``) is answered instead.
-        stats["simplified_path_rejected"] = True
+        # The path as found (every edge checked at ``resolution``) is answered instead: the
+        # time limit ended the check, or (never expected: every shortcut checks what it
+        # keeps) the check failed.
+        stats["simplified_path_rejected"] = "time limit" if checker.late() else True
         path = raw
     simplify_time = time.perf_counter() - t_simplify
     stats["checks"] = checker.checks - checks0
@@ -400,6 +424,7 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
         out.trajectory, note = _trajectory(checker, path, resolution, limits, hydraulics)
         if note:
             out.stats["trajectory"] = note
+    checker.deadline = None
     out.min_clearance = checker.clearance(path, resolution)
     return out
 
@@ -500,7 +525,7 @@ def _trajectory_free(checker: MotionChecker, traj: Any, resolution: float) -> bo
         t = np.linspace(0.0, traj.duration, n)
         Q = traj.evaluate(t)
         step = np.max(np.abs(np.diff(Q, axis=0)) * checker.weights) if n > 1 else 0.0
-        if step <= resolution or n > 200_000:
+        if step <= resolution or n > TRAJECTORY_STATES_MAX:
             break
-        n = int(n * step / resolution * 1.2) + 1
-    return bool(np.all(checker.free(Q)))
+        n = min(int(n * step / resolution * 1.2) + 1, TRAJECTORY_STATES_MAX + 1)
+    return not checker.late() and bool(np.all(checker.free(Q)))

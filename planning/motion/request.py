@@ -39,8 +39,8 @@ from kinematics.errors import FieldError, Loc
 from kinematics.model import MAX_LENGTH_MM
 from kinematics.transforms import project_to_rigid, rigidity_error
 
-from .checker import DEFAULT_RESOLUTION
-from .planner import MAX_RESOLUTION, PLANNERS
+from .checker import DEFAULT_RESOLUTION, PRISMATIC_STEP
+from .planner import MAX_RESOLUTION, MIN_RESOLUTION, PLANNERS
 
 if TYPE_CHECKING:
     from kinematics.model import RobotModel
@@ -55,6 +55,7 @@ __all__ = [
     "DEFAULT_TIME_LIMIT_S",
     "MAX_TIME_LIMIT_S",
     "MAX_RESOLUTION",
+    "MIN_RESOLUTION",
     "MAX_MARGIN_MM",
     "MAX_SEED",
     "MAX_PROBLEMS",
@@ -226,9 +227,9 @@ def _planner(v: Any, loc: Loc) -> str:
 
 def _resolution(v: Any, loc: Loc) -> float:
     r = _number(v, loc, "resolution")
-    if not 0.0 < r <= MAX_RESOLUTION:
-        raise FieldError(loc, f"resolution must be > 0 and at most {MAX_RESOLUTION:g} rad, "
-                              f"got {r:g}")
+    if not MIN_RESOLUTION <= r <= MAX_RESOLUTION:
+        raise FieldError(loc, f"resolution must be within {MIN_RESOLUTION:g}..{MAX_RESOLUTION:g}"
+                              f" rad (x {PRISMATIC_STEP:g} mm on prismatic joints), got {r:g}")
     return r
 
 

@@ -412,6 +412,11 @@ def _compiled(checker: MotionChecker):
         work = _rrt.make_work(checker._robot, checker._scene,
                               np.ascontiguousarray(checker.step_weights))
         checker._work = work
+    # The checker's deadline, for the compiled segment checks of this thread.
+    mode = work[-1]
+    mode[2] = 0 if checker.deadline is None else 1
+    mode[3] = 0
+    _rrt._local.deadline = checker.deadline
     return _rrt, work
 
 

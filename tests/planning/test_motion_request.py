@@ -73,6 +73,10 @@ def test_a_goal_pose_is_projected_onto_the_nearest_rigid_pose():
     ({"start": Q0, "goal": {"q": Q1}, "time_limit": 61}, ("time_limit",)),
     ({"start": Q0, "goal": {"q": Q1}, "resolution": 0.0}, ("resolution",)),
     ({"start": Q0, "goal": {"q": Q1}, "resolution": 0.51}, ("resolution",)),
+    # Finer than 1e-4 rad: work without bound (1e-12 took 10 min; 1e-308 overflowed).
+    ({"start": Q0, "goal": {"q": Q1}, "resolution": 9e-5}, ("resolution",)),
+    ({"start": Q0, "goal": {"q": Q1}, "resolution": 1e-12}, ("resolution",)),
+    ({"start": Q0, "goal": {"q": Q1}, "resolution": 5e-324}, ("resolution",)),
     ({"start": Q0, "goal": {"q": Q1}, "seed": -1}, ("seed",)),
     ({"start": Q0, "goal": {"q": Q1}, "seed": 1.5}, ("seed",)),
     ({"start": Q0, "goal": {"q": Q1}, "margin": -1}, ("margin",)),

@@ -1,0 +1,149 @@
+"""Bounded work in motion planning: the finest ``resolution`` accepted, the deadline every
+segment check looks at, and states sized before they are allocated.
+
+Before these bounds a request with ``resolution`` 1e-12 ran for ten minutes past its 0.5 s
+time limit, 1e-308 overflowed, and a job at 1e-12 tried to allocate 46.6 GiB."""
+
+from __future__ import annotations
+
+import time
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from kinematics.errors import FieldError
+from kinematics.library import builtin_model
+from planning.collision import RobotCollisionModel
+from planning.motion import MIN_RESOLUTION, MotionChecker, MotionStatus, plan_motion
+from planning.motion.checker import segment_states
+from planning.motion.planner import FINISH_S, SIMPLIFY_MIN_S, _trajectory_free
+
+pytest.importorskip("fcl")
+pytestmark = pytest.mark.usefixtures("motion_kernels")
+
+# The palletizer's swing of the attack that ran for ten minutes (at 1e-12).
+START = np.array([-1.0, 0.3, -0.3, 0.0, 0.5, 0.0])
+GOAL = np.array([1.0, 0.3, -0.3, 0.0, 0.5, 0.0])
+
+
+@pytest.fixture(scope="module")
+def glt():
+    return RobotCollisionModel.from_model(builtin_model("glt_palletizer"))
+
+
+@pytest.mark.parametrize("resolution", [MIN_RESOLUTION * 0.99, 1e-12, 1e-308, 5e-324])
+def test_a_resolution_finer_than_the_floor_is_refused(glt, resolution):
+    with pytest.raises(FieldError) as err:
+        plan_motion(MotionChecker(glt), START, GOAL, resolution=resolution)
+    assert tuple(err.value.loc) == ("resolution",)
+
+
+def test_the_floor_itself_plans(glt):
+    res = plan_motion(MotionChecker(glt), START, GOAL, resolution=MIN_RESOLUTION,
+                      time_limit=5.0, seed=2)
+    assert res.status is MotionStatus.OK and res.resolution == MIN_RESOLUTION
+
+
+@pytest.mark.parametrize("jit", [True, False], ids=["compiled", "python"])
+def test_a_plan_at_the_finest_resolution_keeps_its_time_limit(glt, jit):
+    """At 1e-4 rad one segment of this swing is 20,000 states; the search used to check the
+    whole path it found (0.15 s alone) before looking at its 0.02 s limit."""
+    mc = MotionChecker(glt)
+    if not jit:
+        mc._k = None
+    limit = 0.02
+    t0 = time.perf_counter()
+    res = plan_motion(mc, START, GOAL, resolution=MIN_RESOLUTION, time_limit=limit, seed=1)
+    wall = time.perf_counter() - t0
+    # A check looks at the clock every few milliseconds of work.
+    assert res.planning_time_s <= limit + 0.05 or res.status is MotionStatus.OK and \
+        res.planning_time_s - res.simplify_time_s <= limit + 0.05
+    assert wall <= limit + SIMPLIFY_MIN_S + FINISH_S + 0.25
+    assert mc.deadline is None   # cleared for the verification helpers
+    if res.status is MotionStatus.OK:
+        assert mc.path_free(res.path, MIN_RESOLUTION)
+
+
+@pytest.mark.parametrize("jit", [True, False], ids=["compiled", "python"])
+def test_a_segment_check_past_its_deadline_says_not_free(glt, jit):
+    mc = MotionChecker(glt)
+    if not jit:
+        mc._k = None
+    assert mc.segment_free(START, GOAL, MIN_RESOLUTION)
+    mc.deadline = time.perf_counter() - 1.0
+    t0 = time.perf_counter()
+    assert not mc.segment_free(START, GOAL, MIN_RESOLUTION)
+    # One chunk of states at most, not the whole segment.
+    assert time.perf_counter() - t0 < 0.5
+    mc.deadline = None
+    assert mc.segment_free(START, GOAL, MIN_RESOLUTION)
+
+
+def test_the_compiled_shortcut_past_its_deadline_keeps_the_path(glt):
+    from planning.motion.search import shortcut_compiled
+
+    mc = MotionChecker(glt)
+    if mc._k is None:
+        pytest.skip("no compiled kernels")
+    path = np.array([START, [0.0, 0.3, -0.3, 0.0, 0.9, 0.0], [0.5, 0.3, -0.3, 0.0, 0.5, 0.0],
+                     GOAL])
+    assert mc.path_free(path, MIN_RESOLUTION)
+    mc.deadline = time.perf_counter() - 1.0
+    out = shortcut_compiled(mc, path, np.random.default_rng(0), MIN_RESOLUTION)
+    mc.deadline = None
+    assert np.array_equal(out, path)
+    assert len(shortcut_compiled(mc, path, np.random.default_rng(0), MIN_RESOLUTION)) < 4
+
+
+def test_segment_states_match_the_whole_list_without_building_it():
+    rng = np.random.default_rng(11)
+    for _ in range(100):
+        k = int(rng.integers(2, 7))
+        P = rng.normal(size=(k, 3))
+        steps = rng.integers(1, 40, size=k - 1)
+        most = int(rng.integers(1, 120))
+        whole = [P[:1]] + [P[i] + (P[i + 1] - P[i]) * (np.arange(1, n + 1) / n)[:, None]
+                           for i, n in enumerate(steps)]
+        Q = np.concatenate(whole)
+        if len(Q) > most:
+            Q = Q[np.unique(np.linspace(0, len(Q) - 1, most).round().astype(int))]
+        assert np.array_equal(segment_states(P, steps, most), Q)
+
+
+def test_clearance_over_a_long_fine_path_stays_small_in_memory(glt):
+    """120 swings at 1e-4 rad are 24 million states (1.2 GB as one array): only the 100
+    the clearance looks at are built."""
+    mc = MotionChecker(glt)
+    path = np.array([START if i % 2 == 0 else GOAL for i in range(121)])
+    tracemalloc.start()
+    try:
+        d = mc.clearance(path, MIN_RESOLUTION)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert d is not None and d > 0
+    assert peak < 20e6
+
+
+def test_the_trajectory_check_is_sized_before_it_is_allocated(glt):
+    """At 1e-12 rad the blend check asked for 3.6e12 states (a MemoryError of tens of GB);
+    it now stops at its cap whatever it is asked."""
+    from planning.trajectories.joint_path import smooth_polyline
+    from planning.trajectories.topp import time_optimal
+    from planning.trajectories.trajectory import Limits
+
+    model = builtin_model("glt_palletizer")
+    path = np.array([START, [0.0, 0.3, -0.3, 0.0, 0.9, 0.0], GOAL])
+    traj = time_optimal(smooth_polyline(path, 0.05),
+                        Limits(velocity=np.asarray(model.velocity_limits),
+                               acceleration=np.full(6, 2.0))).trajectory
+    mc = MotionChecker(glt)
+    tracemalloc.start()
+    try:
+        free = _trajectory_free(mc, traj, 1e-12)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert free
+    assert peak < 200e6
