@@ -20,6 +20,7 @@ from kinematics.model import RobotModel
 from kinematics.workspace import MAX_SAMPLES
 
 from .scene import CylinderDrawing
+from .text import plain
 
 __all__ = [
     "ControlPanel",
@@ -76,8 +77,8 @@ def cylinder_table(cylinders: Sequence[CylinderDrawing]) -> str:
     rows = ["| cylinder | joint | length mm | stroke mm | of |", "|---|---|--:|--:|--:|"]
     for c in cylinders:
         flag = "" if c.within_stroke else " ⚠ outside stroke"
-        rows.append(f"| {c.name} | {c.joint} | {c.length:.1f} | {c.stroke:.1f}{flag} | "
-                    f"{c.max_length - c.min_length:.1f} |")
+        rows.append(f"| {plain(c.name)} | {plain(c.joint)} | {c.length:.1f} | "
+                    f"{c.stroke:.1f}{flag} | {c.max_length - c.min_length:.1f} |")
     return "\n".join(rows)
 
 

@@ -58,6 +58,7 @@ from kinematics.model import RobotModel
 from planning.motion import PRISMATIC_SCALE
 
 from .site import object_bounds_mm
+from .text import code, plain
 
 __all__ = [
     "DRAWERS",
@@ -178,7 +179,8 @@ class Site:
 class Plan:
     """What to draw for one job. ``robot``: robot or rig id to show with it (None: keep the
     current one); ``motions`` by arm (``""`` for a single robot, the arm name in a rig);
-    ``summary`` Markdown for the GUI. Node names are relative to the plan's root."""
+    ``summary`` Markdown for the GUI (text of the job's or the request's through
+    ``web.text``). Node names are relative to the plan's root."""
 
     job: str
     kind: str
@@ -343,7 +345,7 @@ def _hole_size(holes: np.ndarray) -> float:
 @drawer("workspace")
 def _workspace(params: WorkspaceParams, result: WorkspaceResult, ctx: DrawContext) -> Plan:
     points = _points(result.points)
-    lines = [f"**Workspace** of `{result.robot}` (job `{ctx.job}`): {len(points):,} of "
+    lines = [f"**Workspace** of {code(result.robot)} (job {code(ctx.job)}): {len(points):,} of "
              f"{result.samples:,} samples shown"]
     for k, axis in enumerate("xyz"):
         lines.append(f"- {axis}: {_fmt(result.min[k])} … {_fmt(result.max[k])}")
@@ -395,13 +397,14 @@ def _path(params: PathParams, result: PathResult, ctx: DrawContext) -> Plan:
                                   result.trajectory.t, "result.trajectory.t")
         elif result.joint_path:
             motions[""] = _motion(result.joint_path, "result.joint_path", model)
-    planner = f", {result.planner.replace('_', ' ')}" if result.planner else ""
-    lines = [f"**Path** (job `{ctx.job}`, {params.algorithm}{planner}): {len(path)} points",
+    planner = f", {plain(result.planner.replace('_', ' '))}" if result.planner else ""
+    lines = [f"**Path** (job {code(ctx.job)}, {plain(params.algorithm)}{planner}): "
+             f"{len(path)} points",
              f"- length: {_fmt(result.length)}",
              f"- min clearance: {_fmt(result.min_clearance)}",
              f"- runtime: {result.runtime_s:.2f} s"]
     if not result.success:
-        lines.append(f"- **no clear path**: {result.message}")
+        lines.append(f"- **no clear path**: {plain(result.message)}")
     lines.append("- arm: moves along the joint path" if motions else
                  "- arm: no joint path in the result")
     polylines = (Polyline("path", path, PATH_COLOR),) if len(path) else ()
@@ -419,7 +422,7 @@ def _sequence(params: SequenceParams, result: SequenceResult, ctx: DrawContext) 
     line = holes[order]
     if params.start is not None:
         line = np.vstack([[params.start], line])
-    lines = [f"**Drilling sequence** (job `{ctx.job}`, {result.algorithm}): "
+    lines = [f"**Drilling sequence** (job {code(ctx.job)}, {plain(result.algorithm)}): "
              f"{len(holes)} holes", f"- length: {_fmt(result.length)}",
              f"- runtime: {result.runtime_s:.2f} s"]
     return Plan(ctx.job, "sequence", spheres=(
@@ -450,13 +453,14 @@ def _multiarm(params: MultiarmParams, result: MultiarmResult, ctx: DrawContext) 
             spheres.append(Spheres(f"{arm}/holes", holes,
                                    np.full(len(holes), _hole_size(holes)), color))
             polylines.append(Polyline(f"{arm}/order", holes, color))
-    lines = [f"**Multi-arm plan** of `{params.rig}` (job `{ctx.job}`, {result.planner}): "
-             f"arms {', '.join(motions) or 'without motion'}"]
+    lines = [f"**Multi-arm plan** of {code(params.rig)} (job {code(ctx.job)}, "
+             f"{plain(result.planner)}): arms "
+             f"{', '.join(plain(arm) for arm in motions) or 'without motion'}"]
     for pair, d in result.min_distance.items():
-        lines.append(f"- min distance {pair}: {_fmt(min(d) if d else None)}")
+        lines.append(f"- min distance {plain(pair)}: {_fmt(min(d) if d else None)}")
     lines.append(f"- collisions: {result.collisions}")
     if not result.success:
-        lines += [f"- **{m}**" for m in result.messages]
+        lines += [f"- **{plain(m)}**" for m in result.messages]
     return Plan(ctx.job, "multiarm", robot=params.rig, spheres=tuple(spheres),
                 polylines=tuple(polylines), motions=motions, summary="\n".join(lines))
 
@@ -470,8 +474,8 @@ def _tracking(params: TrackingParams, result: TrackingResult, ctx: DrawContext) 
         raise ValueError(f"result.x_desired: expected {len(motion.q)} points (one per step), "
                          f"got {len(desired)}")
     actual = fk(model, motion.q)[:, :3, 3]
-    lines = [f"**Tracking** of `{params.robot}` (job `{ctx.job}`): {len(motion.q)} samples, "
-             f"{motion.duration:.1f} s",
+    lines = [f"**Tracking** of {code(params.robot)} (job {code(ctx.job)}): {len(motion.q)} "
+             f"samples, {motion.duration:.1f} s",
              f"- mean error: {result.mean_error:.4g} mm, max: {result.max_error:.4g} mm",
              "- blue: desired tool path, orange: actual"]
     return Plan(ctx.job, "tracking", robot=params.robot,
@@ -531,7 +535,7 @@ def _motion_site(scene: Any) -> tuple[tuple[Site, ...], str]:
     if scene is None:
         return (), "none (self-collision only)"
     if isinstance(scene, str):  # a worker refuses these: only a job never submitted has one
-        return (), f"stored scene `{scene}`, not filled in (not drawn)"
+        return (), f"stored scene {code(scene)}, not filled in (not drawn)"
     try:
         objects = collision_scene(scene).objects
     except FieldError as exc:
@@ -539,7 +543,7 @@ def _motion_site(scene: Any) -> tuple[tuple[Site, ...], str]:
         raise ValueError(f"params.{where}: {exc.message}") from None
     text = f"{len(objects)} object(s)"
     if isinstance(scene.get("id"), str):
-        text += f" of stored scene `{scene['id']}`, as it was when the job was submitted"
+        text += f" of stored scene {code(scene['id'])}, as it was when the job was submitted"
     return ((Site("scene", tuple(objects)),) if objects else ()), text
 
 
@@ -604,9 +608,10 @@ def _motion_plan(model: RobotModel, one: Any, key: str, *, job: str, head: str,
         took = "?" if one.planning_time_s is None else f"{one.planning_time_s:.3f} s"
         lines.append(f"- planning: {took}, min clearance {clearance}")
     else:
-        lines.append(f"- **{one.status.replace('_', ' ')}**: {one.message}")
+        lines.append(f"- **{plain(one.status.replace('_', ' '))}**: {plain(one.message)}")
         if one.pairs:
-            lines.append("- colliding: " + ", ".join(f"`{a}`–`{b}`" for a, b in one.pairs))
+            lines.append("- colliding: " + ", ".join(f"{code(a)}–{code(b)}"
+                                                     for a, b in one.pairs))
         if q_start is not None:
             lines.append("- arm: at the start")
     lines.append("- green: the tool's route, yellow: waypoints, blue: start, red: goal")
@@ -647,8 +652,8 @@ def _motion_job(params: MotionParams, result: MotionJobResult, ctx: DrawContext)
                      "another)")
     site, scene_text = _motion_site(params.scene)
     notes.append(f"- scene: {scene_text}")
-    head = (f"**Motion** of `{model.id}` (job `{ctx.job}`, {one.planner}): "
-            f"**{one.status}**")
+    head = (f"**Motion** of {code(model.id)} (job {code(ctx.job)}, {plain(one.planner)}): "
+            f"**{plain(one.status)}**")
     return _motion_plan(model, one, key, job=ctx.job, head=head, start=start, goal=goal,
                         asked=asked_key, site=site, notes=tuple(notes))
 
@@ -665,8 +670,8 @@ def plan_from_motion(answer: Any, *, models: ModelLookup) -> Plan:
     except KeyError:
         raise ValueError(f"motion.robot: unknown robot {typed.robot!r}") from None
     _check_joints(typed.joints, model, "motion.joints")
-    head = (f"**Motion** of `{model.id}` (answer of `POST /robots/{model.id}/motion`, "
-            f"{typed.planner}): **{typed.status}**")
+    head = (f"**Motion** of {code(model.id)} (answer of {code(f'POST /robots/{model.id}/motion')}"
+            f", {plain(typed.planner)}): **{plain(typed.status)}**")
     return _motion_plan(model, typed, "motion", job="", head=head)
 
 

@@ -74,6 +74,7 @@ from .scene import (
     wxyz_from_matrix,
 )
 from .site import SCENE_ROOT, SiteNodes, draw_site
+from .text import code, plain
 
 __all__ = ["Viewer", "JobNotReady", "MM_TO_M", "wxyz_from_matrix", "ROBOT_ROOT", "PLAN_ROOT",
            "SCENE_ROOT"]
@@ -369,11 +370,11 @@ class Viewer:
             if result.success:
                 self.set_q(result.q, key, source="ik")
                 self.gui.ik.content = (f"Reached: position error {result.position_error:.2g} "
-                                       f"mm ({result.method}).")
+                                       f"mm ({plain(result.method)}).")
             else:
-                self.gui.ik.content = (f"**Cannot reach the gizmo** ({result.status}): "
-                                       f"{result.message}\n\nThe arm stays at its last good "
-                                       "pose.")
+                self.gui.ik.content = (f"**Cannot reach the gizmo** ({plain(result.status)}): "
+                                       f"{plain(result.message)}\n\nThe arm stays at its last "
+                                       "good pose.")
         return result
 
     def _on_gizmo(self, event: Any) -> None:
@@ -402,7 +403,7 @@ class Viewer:
             except Exception as exc:  # a bad pose must not kill the IK thread
                 log.warning("IK for the gizmo failed: %s", exc)
                 with self._lock:
-                    self.gui.ik.content = f"**IK error**: {exc}"
+                    self.gui.ik.content = f"**IK error**: {plain(exc)}"
             if ended:
                 with self._lock:
                     if self._ik_pending is None:  # back to the tool at the end of a drag
@@ -572,7 +573,7 @@ class Viewer:
                                                    f"{a.nodes.root}/collision", cm, a.q)
                 except Exception as exc:  # e.g. a URDF without collision geometry
                     log.info("no collision model for '%s': %s", a.model.id, exc)
-                    notes.append(f"`{a.model.id}`: {exc}")
+                    notes.append(f"{code(a.model.id)}: {plain(exc)}")
                     continue
             if a.collision is not None:
                 count += a.collision.count
@@ -602,7 +603,7 @@ class Viewer:
             if objects is not None:
                 self._site = draw_site(self.server.scene, scene_id, objects)
                 n = len(self._site.objects)
-                self.gui.scene.content = f"**Scene** `{scene_id}`: {n} object(s)"
+                self.gui.scene.content = f"**Scene** {code(scene_id)}: {n} object(s)"
             else:
                 self.gui.scene.content = NO_SCENE
             self._frame_cameras()
@@ -640,8 +641,8 @@ class Viewer:
             busy = self._workspace_in_flight()
             if busy is not None:
                 self.gui.workspace.content = (
-                    f"**Not started**: workspace job `{busy}` is still running; wait for it "
-                    "(one workspace job at a time from the viewer).")
+                    f"**Not started**: workspace job {code(busy)} is still running; wait for "
+                    "it (one workspace job at a time from the viewer).")
                 return None
             count = _sample_count(samples)
             if count is None:
@@ -654,12 +655,12 @@ class Viewer:
             try:
                 job = self.jobs.submit("workspace", {"robot": model.id, "samples": count})
             except Exception as exc:  # JobParamsError, QueueFullError: say why in the panel
-                self.gui.workspace.content = f"**Not started**: {exc}"
+                self.gui.workspace.content = f"**Not started**: {plain(exc)}"
                 return None
             self._workspace_job = job.id
             self.gui.progress.value = 0.0
             self.gui.progress.visible = True
-            self.gui.workspace.content = f"Job `{job.id}`: queued ({count:,} samples)"
+            self.gui.workspace.content = f"Job {code(job.id)}: queued ({count:,} samples)"
             return job.id
 
     def _workspace_in_flight(self) -> str | None:
@@ -684,20 +685,21 @@ class Viewer:
             job = None
         except StoreError as exc:  # the store is down: say so, poll again later
             with self._lock:
-                self.gui.workspace.content = f"Job `{job_id}`: the data store is " \
-                                             f"unavailable ({exc.reason}); still waiting"
+                self.gui.workspace.content = (f"Job {code(job_id)}: the data store is "
+                                              f"unavailable ({plain(exc.reason)}); still "
+                                              "waiting")
             return
         with self._lock:
             if job is None or job.status in ("failed", "cancelled"):
                 why = "vanished" if job is None else f"{job.status}: {job.error or ''}"
-                self.gui.workspace.content = f"Job `{job_id}` {why}"
+                self.gui.workspace.content = f"Job {code(job_id)} {plain(why)}"
                 self.gui.progress.visible = False
                 self._workspace_job = None
                 return
             self.gui.progress.value = float(np.clip(100.0 * job.progress, 0.0, 100.0))
             if job.status != "succeeded":
-                msg = f" ({job.message})" if job.message else ""
-                self.gui.workspace.content = (f"Job `{job_id}`: {job.status}, "
+                msg = f" ({plain(job.message)})" if job.message else ""
+                self.gui.workspace.content = (f"Job {code(job_id)}: {plain(job.status)}, "
                                               f"{100 * job.progress:.0f} %{msg}")
                 return
             self._workspace_job = None
@@ -706,7 +708,8 @@ class Viewer:
             self.show_job(job_id)
         except (KeyError, ValueError, JobNotReady) as exc:
             with self._lock:
-                self.gui.workspace.content = f"Job `{job_id}` cannot be shown: {exc}"
+                self.gui.workspace.content = (f"Job {code(job_id)} cannot be shown: "
+                                              f"{plain(exc)}")
             return
         with self._lock:
             if self._plan is not None:

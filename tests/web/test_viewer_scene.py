@@ -32,6 +32,7 @@ from web.scene import (
     height_colors,
     segment_pose,
 )
+from web.text import plain
 from web.viewer import JobNotReady, Viewer
 
 RNG_SEED = 20240611
@@ -288,7 +289,8 @@ def test_ik_drag_follows_reachable_targets_and_keeps_the_last_good_pose(api):
     result = v.drag_tool_to(far)
     assert not result.success
     np.testing.assert_array_equal(v.q(), good)
-    assert "Cannot reach" in v.gui.ik.content and result.message in v.gui.ik.content
+    # The message as the panel's Markdown shows text (web.text).
+    assert "Cannot reach" in v.gui.ik.content and plain(result.message) in v.gui.ik.content
     # The gizmo's own path: a drag event is solved on the IK thread.
     T = fk(model, model.mid_configuration() - 0.05)
     import viser.transforms as vtf
