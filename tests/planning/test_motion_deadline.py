@@ -53,9 +53,10 @@ def test_a_plan_at_the_finest_resolution_keeps_its_time_limit(glt, jit):
     if not jit:
         mc._k = None
     limit = 0.02
-    t0 = time.perf_counter()
+    # The time limit is the contract here (not a speed goal): a wall clock measures it.
+    t0 = time.monotonic()
     res = plan_motion(mc, START, GOAL, resolution=MIN_RESOLUTION, time_limit=limit, seed=1)
-    wall = time.perf_counter() - t0
+    wall = time.monotonic() - t0
     # A check looks at the clock every few milliseconds of work.
     assert res.planning_time_s <= limit + 0.05 or res.status is MotionStatus.OK and \
         res.planning_time_s - res.simplify_time_s <= limit + 0.05
@@ -71,11 +72,11 @@ def test_a_segment_check_past_its_deadline_says_not_free(glt, jit):
     if not jit:
         mc._k = None
     assert mc.segment_free(START, GOAL, MIN_RESOLUTION)
-    mc.deadline = time.perf_counter() - 1.0
-    t0 = time.perf_counter()
+    mc.deadline = 0.0   # long past on the checker's clock
+    checks = mc.checks
     assert not mc.segment_free(START, GOAL, MIN_RESOLUTION)
-    # One chunk of states at most, not the whole segment.
-    assert time.perf_counter() - t0 < 0.5
+    # One chunk of states at most, not the segment's 20,000.
+    assert mc.checks - checks <= 4096
     mc.deadline = None
     assert mc.segment_free(START, GOAL, MIN_RESOLUTION)
 
@@ -89,7 +90,7 @@ def test_the_compiled_shortcut_past_its_deadline_keeps_the_path(glt):
     path = np.array([START, [0.0, 0.3, -0.3, 0.0, 0.9, 0.0], [0.5, 0.3, -0.3, 0.0, 0.5, 0.0],
                      GOAL])
     assert mc.path_free(path, MIN_RESOLUTION)
-    mc.deadline = time.perf_counter() - 1.0
+    mc.deadline = 0.0
     out = shortcut_compiled(mc, path, np.random.default_rng(0), MIN_RESOLUTION)
     mc.deadline = None
     assert np.array_equal(out, path)
