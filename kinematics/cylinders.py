@@ -25,7 +25,9 @@ driven by a motor) are passed through. Each cylinder may also carry its hydrauli
 and ``rod`` diameters in mm), and the robot a pump (``pump_flow`` in L/min shared by the
 cylinders named in ``pump_cylinders``, default all with bore and rod): the limits that time
 scaling of a hydraulic arm respects (``planning.trajectories.hydraulic``). ``check()``
-says, in words, where stroke limits and joint limits disagree; ``diagnose_limits`` says,
+says, in words, where stroke limits and joint limits disagree; ``check_mechanisms()``
+raises, naming the field, for a mechanism that cannot take some joint value of its range (a
+four-bar that cannot close: what the service refuses in a model); ``diagnose_limits`` says,
 for a configuration outside the joint limits (e.g. the nearest IK solution of a pose), what
 it asks of each joint and cylinder at fault.
 
@@ -75,6 +77,7 @@ __all__ = [
     "JointLimit",
     "LimitCause",
     "Mechanism",
+    "MechanismFault",
     "Pump",
     "SwingCylinderPair",
     "TriangleCylinder",
@@ -168,6 +171,27 @@ class CylinderPins:
     def length(self) -> np.ndarray:
         """Distance between the pins (mm): the cylinder's length, ``(*,)``."""
         return np.linalg.norm(self.rod - self.barrel, axis=-1)
+
+
+@dataclass(frozen=True)
+class MechanismFault:
+    """Where a mechanism cannot take the joint values of its range (a linkage that cannot
+    close, pins through a dead point): ``reason`` in words, the first and last failing
+    joint values sampled (``lower``, ``upper``, rad), the field most likely at fault
+    (``field``, None when no one field can be blamed) and what would cure it (``hint``)."""
+
+    reason: str
+    lower: float
+    upper: float
+    field: str | None = None
+    hint: str = ""
+
+
+def _fault(reason: str, theta: np.ndarray, bad: np.ndarray, field: str | None = None,
+           hint: str = "") -> MechanismFault:
+    """A ``MechanismFault`` spanning the samples of ``theta (S,)`` where ``bad (S,)``."""
+    failing = theta[bad] if bad.any() else theta
+    return MechanismFault(reason, float(failing[0]), float(failing[-1]), field, hint)
 
 
 def _check_cylinder(
@@ -298,7 +322,7 @@ class _OneCylinder:
     def dlength_dtheta(self, theta) -> np.ndarray:  # pragma: no cover - overridden
         raise NotImplementedError
 
-    def _invalid_reason(self, theta: np.ndarray) -> str | None:  # pragma: no cover
+    def _fault(self, theta: np.ndarray) -> MechanismFault | None:  # pragma: no cover
         raise NotImplementedError
 
     @property
@@ -336,13 +360,18 @@ class _OneCylinder:
     ) -> list[str]:
         """Problems (in words) between the joint range and the stroke; empty if they agree."""
         theta = np.linspace(self.lower, self.upper, samples)
-        reason = self._invalid_reason(theta)
-        if reason is not None:
-            return [f"{self.name}: {reason}"]
+        fault = self._fault(theta)
+        if fault is not None:
+            return [f"{self.name}: {fault.reason}"]
         return _check_cylinder(
             self.name, theta, self.length(theta), self.dlength_dtheta(theta),
             self.min_length, self.max_length, tol, max_margin,
         )
+
+    def fault(self, samples: int = CHECK_SAMPLES) -> MechanismFault | None:
+        """Where in its joint range, if anywhere, the mechanism cannot take the joint value:
+        what ``check`` looks at first, on the same samples (None: nowhere)."""
+        return self._fault(np.linspace(self.lower, self.upper, samples))
 
 
 @dataclass(frozen=True)
@@ -403,17 +432,31 @@ class TriangleCylinder(_OneCylinder):
         barrel = np.broadcast_to(_ray(-self.sign * self.phi0, self.r1), theta.shape + (2,))
         return (CylinderPins(self.name, self.joint, barrel, _ray(theta, self.r2)),)
 
-    def _invalid_reason(self, theta: np.ndarray) -> str | None:
+    def _fault(self, theta: np.ndarray) -> MechanismFault | None:
         phi = self.phi(theta)
         phi_mod = np.mod(phi, _TWO_PI)
-        if np.all(phi_mod > 0) and np.all(phi_mod < math.pi) and np.ptp(phi) < math.pi:
+        bad = ~((phi_mod > 0) & (phi_mod < math.pi))
+        if not bad.any() and np.ptp(phi) < math.pi:
             return None
-        return (
+        reason = (
             f"the pin angle phi = phi0 + sign*theta runs from {_deg(phi[0])} to "
             f"{_deg(phi[-1])} over the joint range [{_deg(self.lower)}, {_deg(self.upper)}] and "
             "leaves (0, 180) deg: the pins pass a dead point (cylinder in line with the joint) "
             "and the length is not monotonic"
         )
+        # phi0 turns every pin angle alike, so it is at fault unless the range is too wide
+        # for any phi0 (then the joint limits are, and they are not the cylinder's fields).
+        if np.ptp(phi) < math.pi:
+            return _fault(reason, theta, bad, "phi0")
+        return _fault(reason, theta, bad)
+
+
+#: The bars of a four-bar whose lengths decide whether it closes: L_KH and L_HN set L_KN,
+#: which the rocker L_MN and the coupler L_KM must bridge (``FourBarCylinder._angles``).
+_CLOSING_FIELDS = ("l_kh", "l_hn", "l_mn", "l_km")
+#: Lengths of one bar tried when blaming one for a linkage that cannot close, as fractions
+#: of the other three together: 1/10,000 to 1, 0.23 % apart.
+_CLOSING_FACTORS = np.geomspace(1e-4, 1.0, 4001)
 
 
 @dataclass(frozen=True)
@@ -454,9 +497,11 @@ class FourBarCylinder(_OneCylinder):
     def __post_init__(self) -> None:
         _validate_fields(self)
 
-    def _angles(self, theta) -> dict[str, np.ndarray]:
-        """Every intermediate angle (rad) and length (mm) of the linkage, each ``(*,)``."""
-        a, b, m, k = self.l_kh, self.l_hn, self.l_mn, self.l_km
+    def _angles(self, theta, **lengths) -> dict[str, np.ndarray]:
+        """Every intermediate angle (rad) and length (mm) of the linkage, each ``(*,)``.
+        ``lengths`` (any of ``_CLOSING_FIELDS``) stand in for the model's, broadcast with
+        ``theta``: the same linkage with other bars (``_closing_field``)."""
+        a, b, m, k = (lengths.get(key, getattr(self, key)) for key in _CLOSING_FIELDS)
         khn = self.psi0 + self.sign * np.asarray(theta, dtype=float)
         kn = _side(a, b, khn)  # eq. 21
         # eq. 22 as atan2 of K seen from N (H on N's +x axis): exact where arccos loses digits.
@@ -538,30 +583,64 @@ class FourBarCylinder(_OneCylinder):
             best_gap = np.where(take, gap, best_gap)
         return best
 
-    def _invalid_reason(self, theta: np.ndarray) -> str | None:
+    def _fault(self, theta: np.ndarray) -> MechanismFault | None:
         s = self._angles(theta)
         khn = np.mod(s["khn"], _TWO_PI)
-        if not (np.all(khn > 0) and np.all(khn < math.pi)):
-            return (
+        bad = ~((khn > 0) & (khn < math.pi))
+        if bad.any():
+            reason = (
                 f"angle KHN = psi0 + sign*theta leaves (0, 180) deg over the joint range "
                 f"[{_deg(self.lower)}, {_deg(self.upper)}]"
             )
+            # psi0 shifts angle KHN alike over the range: a range under 180 deg fits some psi0.
+            return _fault(reason, theta, bad, "psi0" if np.ptp(s["khn"]) < math.pi else None)
         bad = ~(np.abs(s["u"]) < 1.0)
         if bad.any():
             i = int(np.argmax(bad))
             lo, hi = abs(self.l_mn - self.l_km), self.l_mn + self.l_km
-            return (
+            reason = (
                 f"the linkage cannot close (or toggles) at theta = {_deg(theta[i])}: L_KN = "
                 f"{s['kn'][i]:.3f} mm is outside ({lo:.3f}, {hi:.3f}) mm = (|L_MN - L_KM|, "
                 "L_MN + L_KM)"
             )
+            return _fault(reason, theta, bad, *self._closing_field())
         mng = s["mng"]
-        if not (np.all(mng > 0) and np.all(mng < math.pi)):
-            return (
+        bad = ~((mng > 0) & (mng < math.pi))
+        if bad.any():
+            reason = (
                 f"angle MNG runs from {_deg(mng[0])} to {_deg(mng[-1])} and leaves (0, 180) deg "
                 "over the joint range: the cylinder passes a dead point"
             )
+            # angle_gnh shifts angle MNG alike over the range.
+            return _fault(reason, theta, bad, "angle_gnh" if np.ptp(mng) < math.pi else None)
         return None
+
+    def _closing_field(self) -> tuple[str | None, str]:
+        """The bar to blame when the linkage cannot close somewhere in its joint range, and
+        what would cure it. Of the four bars that set L_KN and the span M must bridge, the
+        suspects are those that alone could close it over the whole range, the others as
+        they are; named is the one most out of proportion with the other three (as a slip
+        of a digit or of units leaves it), then the one needing the smaller change. None
+        when no bar alone can."""
+        # L_KN grows with angle KHN on (0, pi) (checked before): the limits decide closure.
+        ends = np.array([self.lower, self.upper])
+        best: tuple[tuple[float, float], str | None, str] = ((-1.0, 0.0), None, "")
+        for key in _CLOSING_FIELDS:
+            value = getattr(self, key)
+            others = [getattr(self, k) for k in _CLOSING_FIELDS if k != key]
+            # No bar of a closed four-bar is longer than the other three together.
+            trial = sum(others) * _CLOSING_FACTORS
+            u = self._angles(ends, **{key: trial[:, None]})["u"]
+            closing = trial[np.all(np.abs(u) < 1.0, axis=1)]
+            if not len(closing):
+                continue
+            change = np.abs(np.log(closing / value))
+            score = (abs(math.log(value / float(np.median(others)))), -float(change.min()))
+            if score > best[0]:
+                best = (score, key, f"the nearest {key} that closes it over the whole range, "
+                        f"the other bars as they are, is about "
+                        f"{closing[np.argmin(change)]:.4g} mm")
+        return best[1], best[2]
 
 
 @dataclass(frozen=True)
@@ -938,6 +1017,42 @@ class CylinderSet:
     ) -> list[str]:
         """Every disagreement between stroke limits and joint limits, in words (empty: none)."""
         return [p for mech in self.mechanisms for p in mech.check(samples, tol, max_margin)]
+
+    def check_mechanisms(self, samples: int = CHECK_SAMPLES) -> None:
+        """Raise ``CylinderError`` for the first cylinder whose mechanism cannot take some
+        joint value of its joint's range (a four-bar that cannot close, pins through a dead
+        point), naming the field most likely at fault (``cylinders[2].l_mn``; the cylinder
+        when no one field is) and where in the range it fails.
+
+        ``check`` finds the same first, on the same ``samples`` joint values from limit to
+        limit, both limits included. Closure needs no more: L_KN grows with angle KHN on
+        (0, pi), so a four-bar closes everywhere once it closes at both limits; a triangle's
+        pin angle is linear in the joint value; only a four-bar's angle MNG is sampled
+        (steps under pi / (samples - 1) rad, as angle KHN keeps the range under pi).
+        Unlike ``check``'s stroke mismatches, which a robot may live with, these leave the
+        joint without a cylinder length there (NaN in every map through it: lengths, speeds,
+        the pump's flow) or with a joint that stops following its cylinder."""
+        for m, mech in enumerate(self.mechanisms):
+            parts = zip((".left", ".right"), mech.sides) \
+                if isinstance(mech, SwingCylinderPair) else (("", mech),)
+            for sub, cyl in parts:
+                fault = cyl.fault(samples)
+                if fault is None:
+                    continue
+                joint = f"joint '{self.joint_names[cyl.joint]}' (q[{cyl.joint}])"
+                where = f"{joint} = {fault.lower:.6g} rad" if fault.lower == fault.upper \
+                    else f"{joint} from {fault.lower:.6g} to {fault.upper:.6g} rad"
+                message = (f"cylinder {m} ('{cyl.name}'): the mechanism cannot take {where} "
+                           f"of the joint's range [{cyl.lower:.6g}, {cyl.upper:.6g}] rad: "
+                           f"{fault.reason}")
+                path = f"cylinders[{m}]{sub}"
+                if fault.field is not None:
+                    path += f".{fault.field}"
+                    message += f"; {fault.field} = {getattr(cyl, fault.field):g} is the field " \
+                        "most likely at fault"
+                    if fault.hint:
+                        message += f" ({fault.hint})"
+                raise CylinderError(path, message)
 
     # ---- construction -------------------------------------------------------------------
     @classmethod

@@ -149,7 +149,10 @@ def create_robot(registry: RegistryDep, data: ModelBody) -> dict[str, Any]:
     # ["body", "joints", 2, "lower"]): the service answers them 422 there.
     model = RobotModel.from_dict(data)
     if {"cylinders", "pump_flow", "pump_cylinders"} & set(model.extras):
-        CylinderSet.from_model(model)  # bad cylinder data is the model's fault: 422 now
+        # Bad cylinder data is the model's fault: 422 now, not NaN in every later answer
+        # through a linkage that cannot close somewhere in its joint's range. (An import from
+        # URDF cannot carry cylinders: this is the one way in for them.)
+        CylinderSet.from_model(model).check_mechanisms()
     try:
         registry.add(model)
     except RobotConflictError as exc:

@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from fastapi import APIRouter, Request, Response
 from starlette.concurrency import run_in_threadpool
 
+from kinematics.cylinders import CylinderError, cylinder_set
 from kinematics.errors import FieldError
 from kinematics.fk import fk
 from kinematics.model import RobotModel
@@ -55,10 +57,62 @@ def _robot(registry, robot_id: str | None) -> RobotModel | None:
     if robot_id is None:
         return None
     try:
-        return registry.get(robot_id)
+        robot = registry.get(robot_id)
     except KeyError:
         raise http_error(404, ["body", "robot"], f"unknown robot '{robot_id}'",
                          "not_found") from None
+    fault = _cylinder_fault(robot)
+    if fault is not None:
+        raise http_error(409, ["body", "robot"], fault, "conflict")
+    return robot
+
+
+@lru_cache(maxsize=64)
+def _cylinder_fault(robot: RobotModel) -> str | None:
+    """Why the robot's cylinder data cannot serve a trajectory, None if it can. POST /robots
+    refuses such data, but a robot stored before it did may have it: its cylinder speeds
+    and pump flow would be NaN wherever a linkage cannot close. (Models are immutable and
+    kept by the registry, so once per robot.)"""
+    if not {"cylinders", "pump_flow", "pump_cylinders"} & set(robot.extras):
+        return None
+    try:
+        cylinder_set(robot).check_mechanisms()
+    except CylinderError as exc:
+        return f"robot '{robot.id}' has invalid cylinder data: {exc}"
+    return None
+
+
+def _non_finite(value, path: str = "") -> tuple[str, float] | None:
+    """The first number in nested lists and dicts that is NaN or infinite, with its path
+    (``hydraulics.cylinders.boom.peak_extension_speed``); None if all are finite."""
+    if isinstance(value, float):
+        return None if math.isfinite(value) else (path, value)
+    items = value.items() if isinstance(value, dict) else \
+        enumerate(value) if isinstance(value, list | tuple) else ()
+    for key, item in items:
+        sub = f"{path}[{key}]" if isinstance(key, int) else f"{path}.{key}" if path else key
+        found = _non_finite(item, sub)
+        if found is not None:
+            return found
+    return None
+
+
+def _encoded(answer: dict, robot: RobotModel | None) -> bytes:
+    """The answer as JSON. A NaN or infinity in it is numerics the checks before should have
+    refused (data stored before a check existed, say): a 422 saying where, never a 500."""
+    try:
+        return encode_json(answer)
+    except ValueError:  # json's "Out of range float values are not JSON compliant"
+        found = _non_finite(answer)
+        if found is None:
+            raise
+    where, value = found
+    if robot is not None:
+        raise FieldError(["robot"], f"robot '{robot.id}' cannot be evaluated along this "
+                         f"trajectory: the answer's {where} came out {value}, not a finite "
+                         "number")
+    raise FieldError(["waypoints"], "these waypoints give no trajectory in finite numbers: "
+                     f"the answer's {where} came out {value}")
 
 
 def _per_joint(value, dof: int, field: str) -> np.ndarray | None:
@@ -294,7 +348,7 @@ async def _computed(request: Request, heavy: bool, fn, *args) -> bytes:
 
 
 def _plan_answer(body: TrajectoryRequest, robot: RobotModel | None) -> bytes:
-    return encode_json(_report(_plan(body, robot), body.dt))
+    return _encoded(_report(_plan(body, robot), body.dt), robot)
 
 
 @router.post("")
@@ -398,4 +452,4 @@ def _cartesian_answer(body: CartesianRequest, robot: RobotModel) -> bytes:
         "mean_deviation": dev_mean,
         "max_waypoint_error": float(result.waypoint_error.max()),
     }
-    return encode_json(out)
+    return _encoded(out, robot)
