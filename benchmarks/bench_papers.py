@@ -10,8 +10,8 @@ For each comparison: the paper's figure, ours, the setup, and a verdict, one of
 Papers: 000 (pile driver: workspace, Tables 3 and 4 of the wolf packs), 002 (tunnel jumbo:
 Table 3 positions, RBF IK, IGA / ACO / AGA, IAPF / RRT, minimum distances, accelerations,
 the collision probability of the abstract), 003 (9-DOF tracking, Table 3 with the "No PI"
-row at the paper's scale) and 004 (GLT palletizer kinematics, for the README table). The
-last section prints the README's "What the papers print" table in markdown
+row at the paper's scale) and 004 (GLT palletizer kinematics, for the papers table). The
+last section prints the "What the papers print" table of docs/papers.md in markdown
 (``--markdown PATH`` also writes it to a file).
 
 Seeds: the tests use seeds 0..29 on the toy scene; here the wolf packs run seeds 100..129, the
@@ -74,8 +74,8 @@ PAPER002_COLLISION_REDUCTION = 37.2  # %, abstract
 
 @dataclass(frozen=True)
 class Row:
-    """One line of the README table: the paper's table, what it prints, what we measure,
-    and the verdict."""
+    """One line of the papers table (docs/papers.md): the paper's table, what it prints,
+    what we measure, and the verdict."""
 
     paper: str
     item: str
@@ -106,7 +106,7 @@ def interval(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     return 100.0 * (1.0 - ra - 1.96 * se), 100.0 * (1.0 - ra + 1.96 * se)
 
 
-# ---- paper 004: GLT palletizer (cheap kinematic checks, for the README table) ---------------
+# ---- paper 004: GLT palletizer (cheap kinematic checks, for the papers table) ----------------
 def paper_004() -> None:
     from kinematics.fk import fk
     from kinematics.ik import solve_ik
@@ -773,7 +773,7 @@ def paper_003(runs: int, workers: int) -> None:
         "optimum of eq. 24: three gains in one basin leave little to rank them by)")
 
 
-# ---- the README table --------------------------------------------------------------------------
+# ---- the papers table (docs/papers.md) -----------------------------------------------------------
 def markdown() -> str:
     lines = ["| paper | what it prints | printed | ours | verdict |", "|---|---|---|---|---|"]
     for r in ROWS:
@@ -787,7 +787,8 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true",
                     help="fewer seeds, runs and trials (about 2 minutes)")
     ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
-    ap.add_argument("--markdown", type=Path, help="also write the README table here")
+    ap.add_argument("--markdown", type=Path,
+                    help="also write the papers table (docs/papers.md) here")
     args = ap.parse_args()
     q = args.quick
     print(f"kinoplan paper benchmark; python {platform.python_version()}, numpy "
@@ -811,7 +812,7 @@ def main() -> None:
         step()
         print(f"  ({time.perf_counter() - t:.0f} s)")
     table = markdown()
-    print("\n== README: What the papers print, and what we measure ==\n")
+    print("\n== docs/papers.md: What the papers print, and what we measure ==\n")
     print(table)
     if args.markdown:
         args.markdown.write_text(table + "\n")

@@ -25,9 +25,9 @@ the most kicks it could be given (``run_cap``); ``combine`` makes ``solve``'s an
 runs, running again the one the kick budget cuts short (and any it lacks). Each run then has
 the time limit of its own.
 
-Measured against LKH (``benchmarks/bench_sequencing.py``): see the README's sequencing speed
-table. Why not LKH or OR-Tools themselves: a large binary dependency (and LKH's licence is
-for research only) for what this search does within a fraction of a per cent.
+Measured against LKH (``benchmarks/bench_sequencing.py``): see the sequencing speed table in
+docs/drilling.md. Why not LKH or OR-Tools themselves: a large binary dependency (and LKH's
+licence is for research only) for what this search does within a fraction of a per cent.
 """
 
 from __future__ import annotations
