@@ -47,6 +47,13 @@ class Settings(BaseSettings):
         3600.0, ge=1, le=7 * 86_400,
         description="seconds a job may run, and the most a job may ask for (time_limit_s of "
         "POST /jobs); a job still running then fails with 'time limit of N s exceeded'")
+    job_retention_days: float = Field(
+        30.0, ge=0, le=36_500,
+        description="days a finished job (record and result) is kept after it ended, then "
+        "deleted; 0: no age limit. The latest succeeded ik_train job of each robot stays")
+    job_retention_count: int = Field(
+        10_000, ge=0, le=10**9,
+        description="finished jobs kept at most (those that ended last); 0: no count limit")
     allowed_hosts: str | None = Field(
         None,
         description="comma-separated Host names the API answers ('*' = any; unset: the "

@@ -128,7 +128,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.state.jobs = JobManager(api.state.store, api.state.registry, settings.jobs_backend,
                                 settings.workers, settings.max_queued_jobs,
                                 time_limit_s=settings.job_time_limit_s,
-                                cluster_deadline_s=settings.cluster_deadline_s)
+                                cluster_deadline_s=settings.cluster_deadline_s,
+                                retention_days=settings.job_retention_days,
+                                retention_count=settings.job_retention_count)
     api.state.jobs.scenes = api.state.scenes
     api.state.viewer = None
     api.state.compute = ComputePool(settings.compute_workers, settings.max_waiting_computations)

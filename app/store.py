@@ -7,6 +7,11 @@ thread pool: every call opens its own connection (cheap for a local file) and ru
 transaction, so a crash never leaves half a write, and WAL mode lets readers proceed while
 one writer commits.
 
+A job's payload (what its worker needs: an imported robot's meshes can take megabytes) is
+kept only while the job is queued or running; finished jobs keep their record and result
+until deleted (``DELETE /jobs/{id}``, or pruned by the retention settings). The pages freed
+stay in the file for later rows until ``compact`` gives them back.
+
 When the file becomes unusable (deleted, replaced by something that is not a database,
 corrupt, read-only, disk full) every call raises ``StoreError`` (the API answers 503) and
 the change is logged once. The store never creates the file again behind the operator's
@@ -31,7 +36,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 __all__ = ["Store", "StoredRobot", "JobRecord", "DuplicateError", "StoreError",
-           "StoreMirror", "STORE_FILENAME", "now_iso"]
+           "StoreMirror", "StoreUsage", "STORE_FILENAME", "ENDED", "now_iso"]
 
 log = logging.getLogger(__name__)
 
@@ -101,6 +106,18 @@ _MIGRATIONS: tuple[str, ...] = (
         created TEXT NOT NULL
     );
     """,
+    # Payloads (megabytes for an imported robot's meshes) live apart from the job records,
+    # only while the job is queued or running: a progress write then rewrites a small row,
+    # and a job that ends drops its payload. ``jobs.payload_json`` stays, always ''.
+    """
+    CREATE TABLE IF NOT EXISTS job_payloads (
+        job_id TEXT PRIMARY KEY,
+        payload_json TEXT NOT NULL
+    );
+    INSERT OR IGNORE INTO job_payloads (job_id, payload_json)
+        SELECT id, payload_json FROM jobs WHERE status IN ('queued', 'running');
+    UPDATE jobs SET payload_json = '' WHERE payload_json <> '';
+    """,
 )
 
 
@@ -127,8 +144,9 @@ class StoreError(Exception):
 
 @dataclass(frozen=True)
 class JobRecord:
-    """One job. ``params`` as submitted; ``payload`` what the worker gets (params plus what
-    the service resolved, e.g. the robot model). Times are UTC ISO strings or None."""
+    """One job. ``params`` as submitted; its payload (``Store.job_payload``: params plus what
+    the service resolved, e.g. the robot model) is kept apart, until the job ends. Times are
+    UTC ISO strings or None."""
 
     id: str
     kind: str
@@ -160,6 +178,16 @@ _JOB_COLUMNS = (
 )
 
 
+#: The statuses of a job that has ended: it never runs again.
+ENDED = ("succeeded", "failed", "cancelled")
+_ENDED_SQL = "(" + ", ".join(f"'{status}'" for status in ENDED) + ")"
+# Payloads of jobs that cannot run again (ended, or deleted) are dropped.
+_DROP_ENDED_PAYLOADS = ("DELETE FROM job_payloads WHERE job_id NOT IN "
+                        "(SELECT id FROM jobs WHERE status IN ('queued', 'running'))")
+#: Free pages worth less than this stay in the file for the next payloads (``compact``).
+COMPACT_MIN_FREE_BYTES = 16 << 20
+
+
 def _job(row: tuple) -> JobRecord:
     return JobRecord(row[0], row[1], json.loads(row[2]), *row[3:11], bool(row[11]), row[12])
 
@@ -172,6 +200,18 @@ def _job_filter(status: str | None, kind: str | None) -> tuple[str, tuple]:
         return "", ()
     return " WHERE " + " AND ".join(f"{name} = ?" for name, _ in terms), \
         tuple(value for _, value in terms)
+
+
+@dataclass(frozen=True)
+class StoreUsage:
+    """What the store takes on disk, read with its health check."""
+
+    #: Bytes of its files (the database, its write-ahead log and shared-memory index).
+    bytes: int
+    #: Bytes of free pages inside the database file (given back by ``Store.compact``).
+    free_bytes: int
+    #: Jobs by status, every status named.
+    jobs: dict[str, int]
 
 
 @dataclass(frozen=True)
@@ -255,6 +295,7 @@ class Store:
         self._write_failure: tuple[float, str] | None = None  # (when, why) of a failed write
         self._health_lock = threading.Lock()
         self._health: tuple[float, str | None] | None = None  # (when, why unhealthy)
+        self._usage: StoreUsage | None = None  # read by the last health check that could
         parent = self.path.parent
         try:
             parent.mkdir(parents=True, exist_ok=True)
@@ -317,6 +358,10 @@ class Store:
         """Bring the file to the latest schema; reads only when it is there already."""
         conn = self._open(create=create)
         try:
+            if conn.execute("PRAGMA page_count").fetchone()[0] == 0:
+                # A new file: only now (before WAL writes its header) can it be made to give
+                # freed pages back (``compact``) without a VACUUM.
+                conn.execute("PRAGMA auto_vacuum = INCREMENTAL")
             mode = conn.execute("PRAGMA journal_mode").fetchone()[0]
             version = conn.execute("PRAGMA user_version").fetchone()[0]
             if mode.lower() != "wal":
@@ -434,6 +479,22 @@ class Store:
         store's state has changed since)."""
         return self._health
 
+    @property
+    def usage(self) -> StoreUsage | None:
+        """The store's size and jobs by status as the last health check read them; None
+        when it could not read them."""
+        return self._usage
+
+    def size_bytes(self) -> int:
+        """Bytes of the store's files: the database, its write-ahead log and its index."""
+        total = 0
+        for suffix in ("", "-wal", "-shm"):
+            try:
+                total += os.stat(f"{self.path}{suffix}").st_size
+            except OSError:
+                pass
+        return total
+
     def health(self, max_age_s: float = HEALTH_TTL_S) -> str | None:
         """None when the store works, else why not. A real but cheap check: the file is
         there and readable, it and its directory are writable, its file system has room,
@@ -447,10 +508,17 @@ class Store:
             return why
 
     def _check_health(self) -> str | None:
+        self._usage = None
         try:
             with self._connect(timeout_s=HEALTH_TIMEOUT_S) as conn:
                 conn.execute("SELECT 1 FROM robots LIMIT 1").fetchall()
-                conn.execute("SELECT 1 FROM jobs LIMIT 1").fetchall()
+                # Counted on the status index alone: cheap for any number of jobs.
+                counts = dict.fromkeys(("queued", "running", *ENDED), 0)
+                counts.update(conn.execute(
+                    "SELECT status, COUNT(*) FROM jobs GROUP BY status").fetchall())
+                free = (conn.execute("PRAGMA freelist_count").fetchone()[0]
+                        * conn.execute("PRAGMA page_size").fetchone()[0])
+            self._usage = StoreUsage(self.size_bytes(), free, counts)
         except StoreError as exc:
             if exc.code != sqlite3.SQLITE_BUSY:  # busy with a long write is not broken
                 return exc.reason
@@ -615,10 +683,11 @@ class Store:
                     return None
             conn.execute(
                 "INSERT INTO jobs (id, kind, params_json, payload_json, status, created, "
-                "time_limit_s) VALUES (?, ?, ?, ?, 'queued', ?, ?)",
-                (job_id, kind, json.dumps(params), json.dumps(payload), now_iso(),
-                 time_limit_s),
+                "time_limit_s) VALUES (?, ?, ?, '', 'queued', ?, ?)",
+                (job_id, kind, json.dumps(params), now_iso(), time_limit_s),
             )
+            conn.execute("INSERT INTO job_payloads (job_id, payload_json) VALUES (?, ?)",
+                         (job_id, json.dumps(payload)))
             # Read in the same transaction: the record as written, before a worker can
             # claim the job (the answer of POST /jobs is 'queued').
             row = conn.execute(f"SELECT {_JOB_COLUMNS} FROM jobs WHERE id = ?",
@@ -659,8 +728,10 @@ class Store:
         return None if row is None else _job(row)
 
     def job_payload(self, job_id: str) -> dict:
+        """What the worker of a queued or running job gets; KeyError once the job has ended
+        (its payload is dropped then) or if there is no such job."""
         with self._connect() as conn:
-            row = conn.execute("SELECT payload_json FROM jobs WHERE id = ?",
+            row = conn.execute("SELECT payload_json FROM job_payloads WHERE job_id = ?",
                                (job_id,)).fetchone()
         if row is None:
             raise KeyError(job_id)
@@ -710,15 +781,18 @@ class Store:
                 f"UPDATE jobs SET status = ?, finished = ?, result_json = ?, error = ?, "
                 f"message = ?{progress_sql} WHERE id = ? AND status IN ('queued', 'running')",
                 (status, now_iso(), result_json, error, message, job_id))
+            if cur.rowcount > 0:
+                conn.execute("DELETE FROM job_payloads WHERE job_id = ?", (job_id,))
         return cur.rowcount > 0
 
     def request_cancel(self, job_id: str) -> JobRecord:
         """Cancel a queued job at once; flag a running one for the backend to stop."""
         with self._connect() as conn:
             conn.execute("BEGIN IMMEDIATE")
-            conn.execute(
-                "UPDATE jobs SET status = 'cancelled', finished = ?, message = 'cancelled' "
-                "WHERE id = ? AND status = 'queued'", (now_iso(), job_id))
+            if conn.execute(
+                    "UPDATE jobs SET status = 'cancelled', finished = ?, message = 'cancelled' "
+                    "WHERE id = ? AND status = 'queued'", (now_iso(), job_id)).rowcount:
+                conn.execute("DELETE FROM job_payloads WHERE job_id = ?", (job_id,))
             conn.execute(
                 "UPDATE jobs SET cancel_requested = 1 WHERE id = ? AND status = 'running'",
                 (job_id,))
@@ -743,6 +817,7 @@ class Store:
             conn.execute(
                 "UPDATE jobs SET status = 'cancelled', finished = ?, message = 'cancelled' "
                 "WHERE status = 'queued' AND cancel_requested = 1", (now_iso(),))
+            conn.execute(_DROP_ENDED_PAYLOADS)
         return requeued, failed
 
     def count_jobs(self, status: str | None = None, kind: str | None = None) -> int:
@@ -751,3 +826,73 @@ class Store:
         with self._connect() as conn:
             return conn.execute(f"SELECT COUNT(*) FROM jobs{where}", args).fetchone()[0]
 
+    def delete_ended_job(self, job_id: str) -> JobRecord | None:
+        """Delete a job that has ended, with its result; its record as it was. None, and
+        nothing deleted, while it is queued or running; KeyError if there is no such job."""
+        with self._connect() as conn:
+            conn.execute("BEGIN IMMEDIATE")
+            row = conn.execute(f"SELECT {_JOB_COLUMNS} FROM jobs WHERE id = ?",
+                               (job_id,)).fetchone()
+            if row is None:
+                raise KeyError(job_id)
+            job = _job(row)
+            if job.status not in ENDED:
+                return None
+            conn.execute("DELETE FROM jobs WHERE id = ?", (job_id,))
+            conn.execute("DELETE FROM job_payloads WHERE job_id = ?", (job_id,))
+        return job
+
+    def prune_jobs(self, *, finished_before: str | None = None, keep: int | None = None,
+                   keep_latest: tuple[str, ...] = ()) -> int:
+        """Delete ended jobs with their results: those that ended before ``finished_before``
+        (a UTC ISO time, as ``now_iso``) and all but the ``keep`` that ended last. Queued and
+        running jobs are never deleted, nor the latest succeeded job of each kind of
+        ``keep_latest`` per robot (``params.robot``), which is not counted in ``keep``
+        either. The number of jobs deleted."""
+        spared, args = "", ()
+        if keep_latest:
+            # What the service still serves from (the learned IK of an ik_train job) stays.
+            spared = (" AND seq NOT IN (SELECT MAX(seq) FROM jobs WHERE status = 'succeeded' "
+                      f"AND kind IN ({', '.join('?' * len(keep_latest))}) "
+                      "GROUP BY kind, json_extract(params_json, '$.robot'))")
+            args = tuple(keep_latest)
+        ended = f"status IN {_ENDED_SQL}{spared}"
+        deleted = 0
+        with self._connect() as conn:
+            conn.execute("BEGIN IMMEDIATE")
+            if finished_before is not None:
+                deleted += conn.execute(f"DELETE FROM jobs WHERE {ended} AND finished < ?",
+                                        (*args, finished_before)).rowcount
+            if keep is not None:
+                deleted += conn.execute(
+                    f"DELETE FROM jobs WHERE seq IN (SELECT seq FROM jobs WHERE {ended} "
+                    "ORDER BY finished DESC, seq DESC LIMIT -1 OFFSET ?)",
+                    (*args, int(keep))).rowcount
+            conn.execute(_DROP_ENDED_PAYLOADS)
+        return deleted
+
+    def compact(self, min_free_bytes: int = COMPACT_MIN_FREE_BYTES) -> int:
+        """Give the database file's free pages (left by dropped payloads and deleted jobs)
+        back to the file system once they add up to ``min_free_bytes``, and empty the
+        write-ahead log; the bytes the store's files shrank by (0: nothing done). SQLite
+        never shrinks a file by itself: a file made with incremental auto-vacuum (every store
+        since payloads are dropped) moves its last pages into the free ones and is cut; an
+        older file is rewritten once (VACUUM: a pause, and room for a copy of the live data,
+        on the first compaction only)."""
+        before = self.size_bytes()
+        with self._connect() as conn:
+            free = (conn.execute("PRAGMA freelist_count").fetchone()[0]
+                    * conn.execute("PRAGMA page_size").fetchone()[0])
+            if free == 0 or free < min_free_bytes:
+                return 0
+            if conn.execute("PRAGMA auto_vacuum").fetchone()[0] != 2:  # not incremental
+                log.warning("rewriting the store at %s once (VACUUM) to give %.1f MB of free "
+                            "pages back; later compactions are incremental", self.path,
+                            free / 1e6)
+                conn.execute("PRAGMA auto_vacuum = INCREMENTAL")
+                conn.execute("VACUUM")
+            else:
+                # executescript steps the pragma to its end; execute() frees a single page.
+                conn.executescript("PRAGMA incremental_vacuum;")
+            conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+        return max(0, before - self.size_bytes())

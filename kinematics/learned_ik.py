@@ -36,7 +36,9 @@ from .ik.result import IKResult
 from .model import RobotModel
 from .transforms import pose_errors
 
-__all__ = ["LearnedIK", "train_learned_ik", "TrainingReport", "pose_features"]
+__all__ = ["LearnedIK", "train_learned_ik", "TrainingReport", "pose_features",
+           "sample_configurations", "validate_learned_ik", "ValidationReport",
+           "VALIDATION_SAMPLES"]
 
 #: Training samples each prediction draws on.
 NEIGHBORS = 128
@@ -47,6 +49,11 @@ FALLBACK_KERNEL = "thin_plate_spline"
 RANK_TEST_ROWS = 4000
 #: Singular values below this fraction of the largest count as zero in the rank test.
 RANK_TOL = 1e-9
+#: Poses a validation draws by default.
+VALIDATION_SAMPLES = 1000
+#: Spawn key of the validation's random stream under the training seed: a stream of its
+#: own, so no validation pose is a training or test sample of the same seed.
+VALIDATION_STREAM = (1,)
 
 
 def quadratic_tail_is_singular(X: np.ndarray) -> bool:
@@ -209,25 +216,15 @@ def train_learned_ik(
         if not model.lower[j] <= v <= model.upper[j]:
             raise ValueError(f"fixed: {model.joints[j].name} = {v} is outside its limits")
     report = progress or (lambda f, m: None)
-    rng = np.random.default_rng(seed)
     lower, upper = np.asarray(model.lower), np.asarray(model.upper)
-    q = rng.uniform(lower, upper, size=(samples, model.dof))
+    q = sample_configurations(model, np.random.default_rng(seed), samples, fixed=fixed,
+                              posture=posture)
     free = np.ones(model.dof, dtype=bool)
     fixed_values = model.mid_configuration().copy()
     if posture == "drilling":
-        check_drilling_structure(model)
         free[3:6] = False  # roll and the two compensation joints follow the rule
         fixed_values[3] = 0.0
-        q = apply_drilling_rule(q)
-        inside = model.within_limits(q)
-        while not inside.all():  # resample where the rule leaves the compensation limits
-            redo = rng.uniform(lower, upper, size=(int((~inside).sum()), model.dof))
-            q[~inside] = apply_drilling_rule(redo)
-            inside = model.within_limits(q)
-    elif posture != "free":
-        raise ValueError("posture: must be 'free' or 'drilling'")
     for j, v in fixed.items():
-        q[:, j] = v
         free[j] = False
         fixed_values[j] = v
     T = fk(model, q)
@@ -258,3 +255,67 @@ def train_learned_ik(
     )
     report(1.0, "done")
     return learned, result
+
+
+def sample_configurations(model: RobotModel, rng: np.random.Generator, n: int, *,
+                          fixed: dict[int, float] | None = None, posture: str = "free"
+                          ) -> np.ndarray:
+    """``n`` configurations ``(n, dof)`` drawn from ``rng`` as ``train_learned_ik`` draws its
+    samples: uniform within the limits (``posture="drilling"``: in the drilling attitude,
+    redrawn where the rule leaves the limits), the ``fixed`` joints at their values."""
+    lower, upper = np.asarray(model.lower), np.asarray(model.upper)
+    q = rng.uniform(lower, upper, size=(n, model.dof))
+    if posture == "drilling":
+        check_drilling_structure(model)
+        q = apply_drilling_rule(q)
+        inside = model.within_limits(q)
+        while not inside.all():  # resample where the rule leaves the compensation limits
+            redo = rng.uniform(lower, upper, size=(int((~inside).sum()), model.dof))
+            q[~inside] = apply_drilling_rule(redo)
+            inside = model.within_limits(q)
+    elif posture != "free":
+        raise ValueError("posture: must be 'free' or 'drilling'")
+    for j, v in (fixed or {}).items():
+        q[:, j] = v
+    return q
+
+
+@dataclass(frozen=True)
+class ValidationReport:
+    """Errors of the learned map alone (no numeric polish) on ``samples`` held-out poses:
+    position (mm) and rotation (rad) mean, 95th percentile and largest."""
+
+    samples: int
+    mean_position_error: float
+    p95_position_error: float
+    max_position_error: float
+    mean_rotation_error: float
+    p95_rotation_error: float
+    max_rotation_error: float
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+def validate_learned_ik(model: RobotModel, learned: LearnedIK,
+                        samples: int = VALIDATION_SAMPLES, seed: int = 0, *,
+                        fixed: dict[int, float] | None = None) -> ValidationReport:
+    """How far the learned map's guesses put the tool from ``samples`` poses drawn as its
+    training drew its own (its posture, the ``fixed`` joints) but from a stream of their
+    own: seeded by ``seed``, apart from the training stream of that seed (``VALIDATION_STREAM``),
+    so none was trained on."""
+    if samples < 1:
+        raise ValueError("samples: need at least 1")
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=VALIDATION_STREAM))
+    q = sample_configurations(model, rng, samples, fixed=fixed, posture=learned.posture)
+    T = fk(model, q)
+    dp, dr = pose_errors(fk(model, learned.predict(model, T)), T)
+    return ValidationReport(
+        samples=samples,
+        mean_position_error=float(dp.mean()),
+        p95_position_error=float(np.percentile(dp, 95)),
+        max_position_error=float(dp.max()),
+        mean_rotation_error=float(dr.mean()),
+        p95_rotation_error=float(np.percentile(dr, 95)),
+        max_rotation_error=float(dr.max()),
+    )

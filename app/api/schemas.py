@@ -24,6 +24,7 @@ from ..fields import (
     pose_input,
     pose_type,
 )
+from ..store import COMPACT_MIN_FREE_BYTES
 
 __all__ = [
     "MAX_FK_CONFIGS",
@@ -69,6 +70,15 @@ class Body(StrictModel):
 class StoreHealth(BaseModel):
     ok: bool = Field(description="The store can be read and written")
     error: str | None = Field(None, description="Why not, when it cannot")
+    bytes: int | None = Field(None, description="Bytes the store takes on disk: its SQLite "
+                              "file, write-ahead log and index (null when it cannot be read)")
+    free_bytes: int | None = Field(
+        None, description="Of those, bytes of free pages in the file (left by dropped payloads "
+        "and deleted jobs): reused for new rows, and given back to the file system within a "
+        f"minute once they reach {COMPACT_MIN_FREE_BYTES >> 20} MiB")
+    job_counts: dict[str, int] | None = Field(
+        None, description="Jobs in the store by status (queued, running, succeeded, failed, "
+        "cancelled)")
 
 
 class JobsHealth(BaseModel):

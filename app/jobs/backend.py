@@ -149,6 +149,10 @@ class SupervisedBackend:
             except StoreError:
                 self._claimed.insert(0, record)
                 raise
+            except KeyError:  # payloads go only with the job's end; never run one without
+                self.store.finish_job(record.id, "failed", message="failed",
+                                      error="the job's payload is missing from the store")
+                continue
             try:
                 kind = get_kind(record.kind)
                 steps = kind.steps(kind.load_params(JobPayload.from_stored(payload).params))

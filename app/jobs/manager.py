@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import logging
+import threading
 import uuid
+from datetime import UTC, datetime, timedelta
 from typing import Any
 
 from pydantic import ValidationError
@@ -28,6 +30,12 @@ log = logging.getLogger(__name__)
 #: A job started this many times without finishing (service restarts, lost workers) is
 #: failed at the next start of the service instead of run again.
 MAX_ATTEMPTS = 3
+
+#: Seconds between two passes that prune finished jobs (retention) and compact the store.
+MAINTENANCE_EVERY_S = 60.0
+#: Kinds the service serves from after they end: the latest succeeded job of each per robot
+#: (``ik_train``: the learned IK) is never pruned, only deleted on request.
+SERVED_KINDS = ("ik_train",)
 
 
 class JobParamsError(ValueError):
@@ -92,8 +100,15 @@ class JobManager:
 
     def __init__(self, store: Store, registry: RobotRegistry, jobs_backend: str, workers: int,
                  max_queued: int, time_limit_s: float = DEFAULT_TIME_LIMIT_S,
-                 cluster_deadline_s: float | None = None) -> None:
+                 cluster_deadline_s: float | None = None, retention_days: float = 0.0,
+                 retention_count: int = 0) -> None:
         self.store = store
+        #: Finished jobs are pruned this many days after they ended, and beyond the newest
+        #: ``retention_count`` (``Settings.job_retention_*``); 0: no such limit.
+        self.retention_days = retention_days
+        self.retention_count = retention_count
+        self._maintenance: threading.Thread | None = None
+        self._stop_maintenance = threading.Event()
         #: Seconds the Dask backend waits for a lost scheduler (``Settings.cluster_deadline_s``).
         self.cluster_deadline_s = cluster_deadline_s
         #: Seconds a job may run unless it asks for less (``Settings.job_time_limit_s``).
@@ -113,14 +128,63 @@ class JobManager:
         if requeued or failed:
             log.warning("after restart: %d interrupted job(s) queued again, %d failed",
                         requeued, failed)
+        # Before any job runs or request is served (the lifespan runs before the port
+        # opens): the first compaction of a store made before payloads were dropped rewrites
+        # it (VACUUM), which would stall every write meanwhile.
+        self._maintain_logged(set())
         self.backend = make_backend(self.store, self.jobs_backend, self.workers,
                                     cluster_deadline_s=self.cluster_deadline_s)
         self.backend.start()
+        self._stop_maintenance.clear()
+        self._maintenance = threading.Thread(target=self._maintenance_loop, daemon=True,
+                                             name="kinoplan-job-retention")
+        self._maintenance.start()
 
     def stop(self) -> None:
+        self._stop_maintenance.set()
+        if self._maintenance is not None:
+            self._maintenance.join(timeout=10)
+            self._maintenance = None
         if self.backend is not None:
             self.backend.stop()
             self.backend = None
+
+    def maintain(self) -> tuple[int, int]:
+        """Prune the finished jobs the retention settings no longer keep, then give the
+        store's free pages back to the file system when they are worth it
+        (``Store.compact``): (jobs deleted, bytes the store shrank by)."""
+        before = None
+        if self.retention_days > 0:
+            before = (datetime.now(UTC) - timedelta(days=self.retention_days)).isoformat(
+                timespec="microseconds")
+        pruned = self.store.prune_jobs(finished_before=before,
+                                       keep=self.retention_count or None,
+                                       keep_latest=SERVED_KINDS)
+        if pruned:
+            log.info("pruned %d finished job(s) past their retention", pruned)
+        freed = self.store.compact()
+        if freed:
+            log.info("compacted the store at %s: %.1f MB given back", self.store.path,
+                     freed / 1e6)
+        return pruned, freed
+
+    def _maintain_logged(self, logged: set[str]) -> None:
+        """``maintain``, its failures logged once each (the store may be down a while)."""
+        try:
+            self.maintain()
+        except Exception as exc:  # noqa: BLE001 - the store may be down: retried later
+            message = f"{type(exc).__name__}: {exc}"
+            if message not in logged:
+                logged.add(message)
+                log.warning("job retention pass failed (retried every %g s): %s",
+                            MAINTENANCE_EVERY_S, message)
+        else:
+            logged.clear()
+
+    def _maintenance_loop(self) -> None:
+        logged: set[str] = set()
+        while not self._stop_maintenance.wait(MAINTENANCE_EVERY_S):
+            self._maintain_logged(logged)
 
     @property
     def running(self) -> bool:
@@ -233,6 +297,18 @@ class JobManager:
         assert text is not None
         return text
 
+    def delete(self, job_id: str) -> JobRecord | None:
+        """``DELETE /jobs/{id}``: cancel a queued or running job (its record, as ``cancel``),
+        or delete one that has ended, with its result (None). KeyError if unknown."""
+        for _ in range(2):  # a job that ends between the two looks is deleted
+            if self.store.delete_ended_job(job_id) is not None:
+                return None
+            try:
+                return self.cancel(job_id)
+            except JobStateError:
+                continue
+        raise JobStateError(f"job {job_id} could not be cancelled or deleted; try again")
+
     def cancel(self, job_id: str) -> JobRecord:
         """Cancel a queued job at once or stop a running one; JobStateError if it ended."""
         job = self.store.get_job(job_id)
@@ -245,20 +321,28 @@ class JobManager:
 
     def learned_ik(self, robot_id: str):
         """The learned IK of the latest succeeded ``ik_train`` job for ``robot_id`` (cached),
-        with that job's id; None if there is none. One indexed query per call; the result of
-        a job is read (and parsed as ``IKTrainResult``) only when it is newer than the cache."""
-        from kinematics.learned_ik import LearnedIK
-
-        from .model_kinds import IKTrainResult
+        with that job's id; None if there is none; ``model_kinds.LearnedIKRefused`` if that
+        model failed its validation (an older model that passed does not stand in: the latest
+        training is the one asked for). One indexed query per call; the result of a job is
+        read (and parsed as ``IKTrainResult``) only when it is newer than the cache."""
+        from .model_kinds import LearnedIKRefused, served_learned_ik
 
         latest = self.store.latest_job_for_robot("ik_train", robot_id)
         if latest is None:
+            self._learned.pop(robot_id, None)  # its job was deleted: its model goes too
             return None
         cached = self._learned.get(robot_id)
         if cached is None or cached[0] != latest.id:
-            text = self.store.job_result(latest.id)
+            try:
+                text = self.store.job_result(latest.id)
+            except KeyError:  # deleted since the look-up: the one before it serves, if any
+                return self.learned_ik(robot_id)
             assert text is not None  # a succeeded job has its result
-            result = IKTrainResult.model_validate_json(text)
-            cached = (latest.id, LearnedIK.from_dict(result.learned.model_dump()))
+            try:
+                cached = (latest.id, served_learned_ik(robot_id, latest.id, text))
+            except LearnedIKRefused as exc:
+                cached = (latest.id, str(exc))
             self._learned[robot_id] = cached
+        if isinstance(cached[1], str):
+            raise LearnedIKRefused(cached[1])
         return cached

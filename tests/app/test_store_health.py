@@ -70,7 +70,8 @@ def assert_health(client: TestClient, store_error: str | None) -> dict:
     body = r.json()
     if store_error is None:
         assert r.status_code == 200, body
-        assert body["status"] == "ok" and body["store"] == {"ok": True, "error": None}
+        assert body["status"] == "ok" and body["store"]["ok"] is True
+        assert body["store"]["error"] is None
     else:
         assert r.status_code == 503, body
         assert body["status"] == "degraded" and body["store"]["ok"] is False
@@ -97,6 +98,14 @@ def open_with(store: Store, monkeypatch, *pragmas: str) -> None:
 # ---- /health ------------------------------------------------------------------------------
 def test_health_reports_the_store_and_the_jobs(client):
     body = assert_health(client, None)
+    store = store_of(client)
+    files = [store.path, Path(f"{store.path}-wal"), Path(f"{store.path}-shm")]
+    assert body["store"]["bytes"] == sum(f.stat().st_size for f in files if f.exists()) > 0
+    assert 0 <= body["store"]["free_bytes"] < body["store"]["bytes"]
+    assert body["store"]["job_counts"] == {"queued": 0, "running": 0, "succeeded": 0,
+                                           "failed": 0, "cancelled": 0}
+    submit(client)
+    assert client.get("/health").json()["store"]["job_counts"]["queued"] == 1
     # Built but not served: the job supervisor has not been started, which is no fault.
     assert body["jobs"] == {"ok": True, "running": False, "error": None, "workers": None}
 

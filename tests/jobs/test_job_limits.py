@@ -87,6 +87,8 @@ def error(r, status: int = 422) -> dict:
     ("ik_train", {"robot": "glt_palletizer", "samples": 10**7}, ["samples"], "less than"),
     ("ik_train", {"robot": "glt_palletizer", "test_fraction": 0.9}, ["test_fraction"],
      "less than"),
+    ("ik_train", {"robot": "glt_palletizer", "validation_samples": 10**6},
+     ["validation_samples"], "less than"),
     ("calibrate", {"robot": "glt_palletizer", "parameters": ["base.z"],
                    "measurements": [{"q": [1e300] * 6, "position": [0, 0, 0]}]},
      ["measurements", 0, "q", 0], "less than"),

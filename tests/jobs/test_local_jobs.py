@@ -141,8 +141,10 @@ def test_cancel_queued_and_running(tmp_path):
         assert client.delete(f"/jobs/{running}").status_code == 200
         job = wait_for(client, running)
         assert job["status"] == "cancelled" and time.monotonic() - t0 < 2.0
-        # Cancelling again, or an unknown job.
-        assert client.delete(f"/jobs/{running}").status_code == 409
+        # Again, once it has ended: deleted with its result; then, like an unknown job, 404.
+        assert client.delete(f"/jobs/{running}").status_code == 204
+        assert client.get(f"/jobs/{running}").status_code == 404
+        assert client.delete(f"/jobs/{running}").status_code == 404
         assert client.delete("/jobs/nope").status_code == 404
         assert wait_for(client, submit(client, "echo", value=3))["status"] == "succeeded"
 

@@ -2,15 +2,22 @@
 
 from __future__ import annotations
 
+import json
 import sqlite3
 
 import numpy as np
 import pytest
 
+from app.jobs.model_kinds import DEFAULT_MAX_MEAN_POSITION_ERROR
 from kinematics.fk import fk
 from kinematics.library import builtin_model
 
 from .conftest import wait_for
+
+#: Paper 002's Table 3 hole, drilled along the face normal: the tunnel drilling arm's joints
+#: (rad; mm for the telescope d3 and the feed d7).
+TABLE_3_Q = np.radians([-46.77, -134.67, 0, 0, 134.67, 136.77, 0])
+TABLE_3_Q[2], TABLE_3_Q[6] = 8486.38, 4022.0
 
 
 def run_job(client, kind, **params):
@@ -65,11 +72,19 @@ def test_learned_ik_trains_then_answers(jobs_client, capsys):
     assert rep["max_relative_joint_error"] < 0.0062
     assert rep["max_position_error"] < 2.94
     assert rep["polished_success"] == 1.0 and rep["polished_max_position_error"] < 1e-4
+    # Validated on 1,000 poses of a stream of their own: far within the default gate.
+    val = out["validation"]
+    with capsys.disabled():
+        print(f"validation on {val['samples']} held-out poses: position error mean "
+              f"{val['mean_position_error']:.3f} mm, p95 {val['p95_position_error']:.3f} mm, "
+              f"max {val['max_position_error']:.3f} mm (gate: mean <= "
+              f"{val['max_mean_position_error']:g} mm)")
+    assert out["quality"] == "ok" and val["samples"] == 1000
+    assert val["max_mean_position_error"] == DEFAULT_MAX_MEAN_POSITION_ERROR
+    assert val["mean_position_error"] < 0.5 and val["p95_position_error"] < 2.0
+    assert val["max_rotation_error"] < 1e-9  # the drilling rule sets the orientation
     # Table 3's hole, drill along the face normal: the learned method answers.
-    model = builtin_model("tunnel_drill_arm")
-    q = np.radians([-46.77, -134.67, 0, 0, 134.67, 136.77, 0])
-    q[2], q[6] = 8486.38, 4022.0
-    T = fk(model, q)
+    T = fk(builtin_model("tunnel_drill_arm"), TABLE_3_Q)
     res = jobs_client.post("/robots/tunnel_drill_arm/ik",
                            json={"pose": T.tolist(), "method": "learned"}).json()["results"][0]
     assert res["success"] and res["method"] == "learned+numeric"
@@ -77,18 +92,63 @@ def test_learned_ik_trains_then_answers(jobs_client, capsys):
     assert res["position_error"] < 1e-4
 
 
-def test_learned_ik_trains_on_the_glt_palletizer_with_defaults(jobs_client):
+def test_learned_ik_on_the_glt_palletizer_fails_its_validation_with_defaults(jobs_client):
     """A free posture learns the orientation too, whose rotation columns obey quadratic
-    identities; the map still fits (thin-plate spline) and its guesses polish to solutions."""
+    identities; the map still fits (thin-plate spline), but it averages the arm's several
+    joint solutions of one pose: off by about a metre, it fails its validation and is not
+    served. With the gate raised, its guesses serve as starting points that polish to
+    solutions."""
     out = run_job(jobs_client, "ik_train", robot="glt_palletizer")
-    rep = out["report"]
+    rep, val = out["report"], out["validation"]
     assert out["posture"] == "free" and (rep["train"], rep["test"]) == (8800, 1200)
-    assert rep["polished_success"] > 0.95 and rep["polished_max_position_error"] < 1e-3
+    assert out["quality"] == "failed" and val["mean_position_error"] > 500
+    assert val["p95_position_error"] >= val["mean_position_error"]
+    assert val["max_position_error"] >= val["p95_position_error"]
+    assert val["mean_rotation_error"] > 0.5  # rad: the orientation is off too
+    assert "train again with more samples" in out["message"]
     model = builtin_model("glt_palletizer")
     T = fk(model, np.radians([15, 30, 45, 60, 90, 160]))
+    r = jobs_client.post("/robots/glt_palletizer/ik", json={"pose": T.tolist(),
+                                                             "method": "learned"})
+    assert r.status_code == 409
+    detail = r.json()["detail"][0]
+    assert detail["loc"] == ["body", "method"]
+    assert detail["msg"].startswith("the learned IK of robot 'glt_palletizer' (ik_train job ")
+    assert "failed its validation: mean position error" in detail["msg"]
+    assert f"{val['mean_position_error']:,.0f} mm > 10 mm" in detail["msg"]
+    out = run_job(jobs_client, "ik_train", robot="glt_palletizer", samples=2000,
+                  max_mean_position_error=5000)
+    assert out["quality"] == "ok"
+    assert out["report"]["polished_success"] > 0.95
+    assert out["report"]["polished_max_position_error"] < 1e-3
     res = jobs_client.post("/robots/glt_palletizer/ik",
                            json={"pose": T.tolist(), "method": "learned"}).json()["results"][0]
     assert res["success"] and res["method"] == "learned+numeric"
+
+
+def test_a_tiny_training_fails_its_validation_and_the_learned_ik_refuses(jobs_client):
+    """100 samples for an arm that reaches 18 m: the map's guesses are off by decimetres on
+    poses it has not seen (on its own samples it interpolates them), so the job says so and
+    the learned IK does not answer from it, until a training that passes replaces it."""
+    pose = {"pose": fk(builtin_model("tunnel_drill_arm"), TABLE_3_Q).tolist(),
+            "method": "learned"}
+    out = run_job(jobs_client, "ik_train", robot="tunnel_drill_arm", samples=100, seed=3)
+    val = out["validation"]
+    assert out["quality"] == "failed"
+    assert val["samples"] == 1000 and val["mean_position_error"] > 30
+    assert out["message"].startswith(f"mean position error {val['mean_position_error']:.3g} "
+                                     "mm > 10 mm (max_mean_position_error) on 1,000 held-out "
+                                     "poses; train again with more samples")
+    r = jobs_client.post("/robots/tunnel_drill_arm/ik", json=pose)
+    assert r.status_code == 409
+    assert "failed its validation: mean position error" in r.json()["detail"][0]["msg"]
+    out = run_job(jobs_client, "ik_train", robot="tunnel_drill_arm", samples=2000, seed=3,
+                  validation_samples=500)
+    assert out["quality"] == "ok" and out["validation"]["samples"] == 500
+    assert out["validation"]["mean_position_error"] < 2.0
+    assert out["message"].startswith("mean position error ")
+    r = jobs_client.post("/robots/tunnel_drill_arm/ik", json=pose)
+    assert r.status_code == 200 and r.json()["results"][0]["success"]
 
 
 def test_the_kernel_follows_the_features():
@@ -121,9 +181,10 @@ def test_duplicate_samples_do_not_break_the_map():
 
 
 # ---- which trained model answers ---------------------------------------------------------
-def _ik_train_result(robot: str, seed: int) -> tuple[str, np.ndarray]:
+def _ik_train_result(robot: str, seed: int, quality: str = "ok") -> tuple[str, np.ndarray]:
     """A valid ``ik_train`` result JSON for ``robot`` with a small map of its own, and the
-    map's features (what tells two trained models apart)."""
+    map's features (what tells two trained models apart); ``quality`` "failed": one whose
+    validation found it a metre off."""
     from app.jobs.model_kinds import IKTrainResult
     from kinematics.learned_ik import LearnedIK
 
@@ -136,9 +197,18 @@ def _ik_train_result(robot: str, seed: int) -> tuple[str, np.ndarray]:
               "max_position_error": zero, "mean_position_error": zero,
               "max_rotation_error": zero, "polished_max_position_error": zero,
               "polished_max_rotation_error": zero, "polished_success": 1.0}
+    error = 1069.4 if quality == "failed" else 0.05
+    validation = {"samples": 1000, "mean_position_error": error, "p95_position_error": error,
+                  "max_position_error": error, "mean_rotation_error": zero,
+                  "p95_rotation_error": zero, "max_rotation_error": zero,
+                  "max_mean_position_error": 10.0}
+    message = ("mean position error 1,069 mm > 10 mm (max_mean_position_error) on 1,000 "
+               "held-out poses; train again with more samples" if quality == "failed"
+               else "mean position error 0.05 mm ≤ 10 mm on 1,000 held-out poses")
     result = IKTrainResult(robot=robot, posture="free", fixed={}, report=report,
                            paper={"max_relative_joint_error": 0.0062,
                                   "max_position_error": 2.94},
+                           validation=validation, quality=quality, message=message,
                            learned=learned.to_dict())
     return result.model_dump_json(), learned.features
 
@@ -189,6 +259,55 @@ def test_a_second_trained_model_replaces_the_first(manager, monkeypatch):
     job_id, learned = manager.learned_ik("glt_palletizer")
     assert job_id == "second" and np.array_equal(learned.features, f2)
     assert read == ["first", "second"]
+
+
+def test_deleting_the_served_training_hands_over_to_the_one_before_then_to_none(manager):
+    store = manager.store
+    for job_id, seed in (("first", 1), ("second", 2)):
+        text, _ = _ik_train_result("glt_palletizer", seed)
+        _finished(store, job_id, "ik_train", "glt_palletizer", result=text)
+    assert manager.learned_ik("glt_palletizer")[0] == "second"
+    assert manager.delete("second") is None  # ended: deleted, not cancelled
+    assert manager.learned_ik("glt_palletizer")[0] == "first"
+    assert manager.delete("first") is None
+    assert manager.learned_ik("glt_palletizer") is None
+    with pytest.raises(KeyError):
+        manager.delete("first")
+
+
+def test_a_model_that_failed_its_validation_is_refused_even_after_a_good_one(manager,
+                                                                             monkeypatch):
+    """The latest training is the one asked for: one that failed its validation is refused
+    (the verdict cached as a model is), not stood in for by an older one that passed; so is
+    a model stored before ``ik_train`` validated its models."""
+    from app.jobs.model_kinds import LearnedIKRefused
+
+    store = manager.store
+    good, _ = _ik_train_result("glt_palletizer", 1)
+    _finished(store, "good", "ik_train", "glt_palletizer", result=good)
+    assert manager.learned_ik("glt_palletizer")[0] == "good"
+    bad, _ = _ik_train_result("glt_palletizer", 2, quality="failed")
+    _finished(store, "bad", "ik_train", "glt_palletizer", result=bad)
+    read = _reads(store, monkeypatch)
+    for _ in range(2):
+        with pytest.raises(LearnedIKRefused) as info:
+            manager.learned_ik("glt_palletizer")
+        assert str(info.value) == (
+            "the learned IK of robot 'glt_palletizer' (ik_train job bad) failed its "
+            "validation: mean position error 1,069 mm > 10 mm (max_mean_position_error) on "
+            "1,000 held-out poses; train again with more samples")
+    assert read == ["bad"]
+    unvalidated = json.loads(good)
+    for key in ("validation", "quality", "message"):
+        del unvalidated[key]
+    _finished(store, "old", "ik_train", "glt_palletizer", result=json.dumps(unvalidated))
+    with pytest.raises(LearnedIKRefused, match=r"\(ik_train job old\) was trained without "
+                       "validation; train it again"):
+        manager.learned_ik("glt_palletizer")
+    again, features = _ik_train_result("glt_palletizer", 3)
+    _finished(store, "again", "ik_train", "glt_palletizer", result=again)
+    job_id, learned = manager.learned_ik("glt_palletizer")
+    assert job_id == "again" and np.array_equal(learned.features, features)
 
 
 def test_the_lookup_reads_no_other_kind_robot_or_status(manager, monkeypatch):

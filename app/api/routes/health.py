@@ -48,7 +48,11 @@ async def _store_health(store: Store) -> StoreHealth:
             why = f"the store did not answer within {STORE_CHECK_WAIT_S:g} s"
         except Exception as exc:
             why = f"{type(exc).__name__}: {exc}"
-    return StoreHealth(ok=why is None, error=why)
+    usage = store.usage  # read by the same check
+    if usage is None:
+        return StoreHealth(ok=why is None, error=why)
+    return StoreHealth(ok=why is None, error=why, bytes=usage.bytes,
+                       free_bytes=usage.free_bytes, job_counts=usage.jobs)
 
 
 def _jobs_health(jobs: JobManager) -> JobsHealth:

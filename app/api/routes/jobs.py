@@ -1,4 +1,4 @@
-"""Long-running work as jobs: submit, list, follow, fetch the result, cancel.
+"""Long-running work as jobs: submit, list, follow, fetch the result, cancel, delete.
 
 Every kind's params and result are pydantic models (``app.jobs.catalog``): ``GET /jobs/kinds``
 publishes both JSON schemas, and ``GET /jobs/{id}/result`` is documented as one of the result
@@ -211,13 +211,17 @@ def _plot_args(job_id: str, jobs: JobManager, registry) -> tuple:
 
 @router.delete("/{job_id}", response_model=JobRecordOut,
                dependencies=[Depends(require_api_key)],
-               responses={404: {"description": "Unknown job"},
-                          409: {"description": "Already ended"}})
-def cancel_job(job_id: JobId, jobs: ManagerDep) -> dict:
-    """Cancel a queued job at once, or stop a running one (within 2 s)."""
+               responses={204: {"description": "The job had ended: it is deleted, with its "
+                                "result"},
+                          404: {"description": "Unknown job"}})
+def cancel_job(job_id: JobId, jobs: ManagerDep) -> Any:
+    """Cancel a queued job at once, or stop a running one (within 2 s): 200 with its record.
+    A job that has ended (succeeded, failed, cancelled) is deleted with its result: 204, and
+    404 for it from then on."""
     try:
-        return jobs.cancel(job_id).to_dict()
+        job = jobs.delete(job_id)
     except KeyError:
         raise not_found("job", job_id) from None
     except JobStateError as exc:
         raise http_error(409, ["path", "job_id"], str(exc), "conflict") from None
+    return Response(status_code=204) if job is None else job.to_dict()

@@ -34,6 +34,7 @@ from kinematics.workspace import MAX_SAMPLES, sample_workspace, workspace_report
 
 from ...compute import ComputePool
 from ...fields import MAX_JOINT_VALUE
+from ...jobs.model_kinds import LearnedIKRefused
 from ...responses import (
     NPY_RESPONSE,
     FastJSONRoute,
@@ -239,7 +240,10 @@ async def inverse_kinematics(robot: RobotDep, body: IKRequest, request: Request)
     pool = compute(request)
     npy = wants_npy(request)
     if body.method == "learned":
-        found = await run_in_threadpool(request.app.state.jobs.learned_ik, robot.id)
+        try:
+            found = await run_in_threadpool(request.app.state.jobs.learned_ik, robot.id)
+        except LearnedIKRefused as exc:
+            raise conflict(["method"], str(exc)) from None
         if found is None:
             raise conflict(["method"], f"no learned IK is trained for robot '{robot.id}': "
                            "submit an 'ik_train' job first")
