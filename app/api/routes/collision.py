@@ -14,12 +14,13 @@ from starlette.concurrency import run_in_threadpool
 from ...compute import ComputePool, encode_json
 from ...fields import StrictModel, joint_input
 from ...registry import build_collision
+from ...responses import FastJSONRoute
 from ..deps import RegistryDep, RobotDep
 from ..errors import invalid, not_found
 from .kinematics import joint_rows
 from .scenes import get_scenes
 
-router = APIRouter(prefix="/robots", tags=["collision"])
+router = APIRouter(prefix="/robots", tags=["collision"], route_class=FastJSONRoute)
 log = logging.getLogger(__name__)
 
 #: Most configurations in one collision query (413 above). A colliding or nearly colliding

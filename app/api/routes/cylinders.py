@@ -24,6 +24,7 @@ from kinematics.ik import IKStatus, solve_ik
 from kinematics.model import RobotModel
 from kinematics.numbers import finite_or_none
 
+from ...responses import FastJSONRoute
 from ..cylinder_schemas import (
     CylindersInverseRequest,
     CylindersInverseResponse,
@@ -36,7 +37,8 @@ from ..deps import RobotDep
 from ..errors import invalid
 from .kinematics import joint_rows
 
-router = APIRouter(prefix="/robots/{robot_id}", tags=["cylinders"])
+router = APIRouter(prefix="/robots/{robot_id}", tags=["cylinders"],
+                   route_class=FastJSONRoute)
 
 
 def _cylinders_of(robot: RobotModel) -> CylinderSet:

@@ -11,10 +11,11 @@ from fastapi import APIRouter, Request, Response
 
 from ... import __version__
 from ...jobs.manager import JobManager
+from ...responses import FastJSONRoute
 from ...store import HEALTH_TTL_S, Store
 from ..schemas import Health, JobsHealth, StoreHealth
 
-router = APIRouter(tags=["service"])
+router = APIRouter(tags=["service"], route_class=FastJSONRoute)
 
 #: Longest wait (s) for a store check; a store that takes longer counts as unhealthy.
 STORE_CHECK_WAIT_S = 2.0

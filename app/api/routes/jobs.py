@@ -26,11 +26,12 @@ from ...jobs.manager import (
     JobStateError,
     QueueFullError,
 )
+from ...responses import FastJSONRoute
 from ..deps import RegistryDep, require_api_key
 from ..errors import http_error, not_found
 from ..schemas import Body, JobKindOut, JobRecordOut
 
-router = APIRouter(prefix="/jobs", tags=["jobs"])
+router = APIRouter(prefix="/jobs", tags=["jobs"], route_class=FastJSONRoute)
 
 #: Seconds a client is told to wait (``Retry-After``) while the job cluster is unreachable.
 RETRY_AFTER_S = 5

@@ -19,10 +19,11 @@ from planning.motion.request import parse_motion_request
 from ...compute import ComputePool, encode_json
 from ...fields import JointVector
 from ...jobs.motion_kinds import GoalIn, MotionOut, MotionSettings, motion_answer, warm_up
+from ...responses import FastJSONRoute
 from ..deps import RegistryDep, RobotDep
 from .collision import _cached, collision_entry, resolve_scene
 
-router = APIRouter(prefix="/robots", tags=["motion"])
+router = APIRouter(prefix="/robots", tags=["motion"], route_class=FastJSONRoute)
 
 #: Longest ``time_limit`` (s) of a synchronous motion request (422 above; jobs take 60 s).
 MAX_SYNC_TIME_LIMIT_S = 2.0

@@ -6,10 +6,11 @@ from typing import Any
 
 from fastapi import APIRouter
 
+from ...responses import FastJSONRoute
 from ..deps import RegistryDep
 from ..errors import not_found
 
-router = APIRouter(prefix="/rigs", tags=["robots"])
+router = APIRouter(prefix="/rigs", tags=["robots"], route_class=FastJSONRoute)
 
 
 def _summary(rig) -> dict[str, Any]:

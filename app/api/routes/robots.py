@@ -16,14 +16,14 @@ from kinematics.urdf import imported_to_archive, imported_to_urdf, to_urdf
 
 from ...compute import ComputePool
 from ...registry import ReadOnlyRobotError, RobotConflictError
-from ...responses import loads_json
+from ...responses import FastJSONRoute, loads_json
 from ..deps import RegistryDep, RobotDep
 from ..errors import conflict, forbidden, invalid, not_found, too_large
 from ..schemas import JointSummary, RobotSummary
 
-router = APIRouter(prefix="/robots", tags=["robots"])
+router = APIRouter(prefix="/robots", tags=["robots"], route_class=FastJSONRoute)
 #: The routes that change state (guarded by the API key when one is set).
-write_router = APIRouter(prefix="/robots", tags=["robots"])
+write_router = APIRouter(prefix="/robots", tags=["robots"], route_class=FastJSONRoute)
 
 #: Largest robot model body accepted by POST /robots (413 above): a 32-joint model with
 #: generous extra fields is a few KiB.

@@ -7,13 +7,13 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, File, Form, Path, Query, Request, Response, UploadFile
 
 from ...jobs.caps import ParamsLimitError, check_params
-from ...responses import loads_json
+from ...responses import FastJSONRoute, loads_json
 from ...scenes import MeshInUseError, SceneConflictError, SceneRegistry
 from ..errors import conflict, http_error, invalid, not_found, too_large
 
-router = APIRouter(tags=["scenes"])
+router = APIRouter(tags=["scenes"], route_class=FastJSONRoute)
 #: The routes that change state (guarded by the API key when one is set).
-write_router = APIRouter(tags=["scenes"])
+write_router = APIRouter(tags=["scenes"], route_class=FastJSONRoute)
 
 #: Largest scene body (413 above): a scanned cloud of 200,000 points, or MoveIt meshes inline.
 MAX_SCENE_BYTES = 24 * 1024 * 1024

@@ -36,6 +36,7 @@ from planning.trajectories.time_scaling import fit_optimal, fit_uniform, path_fo
 
 from ...compute import encode_json
 from ...plots import trajectory_png
+from ...responses import FastJSONRoute
 from ..deps import RegistryDep
 from ..errors import http_error
 from ..trajectory_schemas import (
@@ -46,7 +47,8 @@ from ..trajectory_schemas import (
     default_grid,
 )
 
-router = APIRouter(prefix="/trajectories", tags=["trajectories"])
+router = APIRouter(prefix="/trajectories", tags=["trajectories"],
+                   route_class=FastJSONRoute)
 
 # Checks here are those of the request's shape; planning's own checks (durations, rates,
 # waypoints, time scaling, the Cartesian path) raise ``FieldError`` naming the body field,

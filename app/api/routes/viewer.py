@@ -7,11 +7,12 @@ from fastapi import APIRouter, Request
 
 from kinematics.errors import FieldError
 
+from ...responses import FastJSONRoute
 from ..deps import RegistryDep
 from ..errors import conflict, http_error, invalid, unavailable
 from ..schemas import ViewerShowRequest
 
-router = APIRouter(prefix="/viewer", tags=["viewer"])
+router = APIRouter(prefix="/viewer", tags=["viewer"], route_class=FastJSONRoute)
 
 
 @router.post("/show")
