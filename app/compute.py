@@ -80,6 +80,16 @@ def _warm() -> None:
     start_motion_warm_up()
 
 
+def _ready() -> None:
+    """In a worker: return once its compiled kernels are loaded (``prestart``)."""
+    from kinematics.fast import warm_up
+
+    warm_up()
+    from planning.motion import warm_up as motion_warm_up
+
+    motion_warm_up()
+
+
 class ComputePool:
     """Runs ``fn(*args)`` in a worker process (``heavy``) or in the thread pool."""
 
@@ -103,6 +113,15 @@ class ComputePool:
                                                      mp_context=forkserver_context(),
                                                      initializer=_warm)
             return self._executor
+
+    def prestart(self) -> None:
+        """Start every worker now and load its kernels, without waiting for them: a worker
+        starts on demand otherwise, and the first plans a fresh service was asked for waited
+        seconds beyond their time limit for it (one task a worker: the pool starts a new
+        process for each task while none is idle)."""
+        pool = self._pool()
+        for _ in range(self.workers):
+            pool.submit(_ready)
 
     def _discard(self, broken: ProcessPoolExecutor) -> None:
         with self._lock:

@@ -70,6 +70,10 @@ class Settings(BaseSettings):
         "batches, plots)")
     max_waiting_computations: int = Field(
         32, ge=1, description="heavy requests that may wait for a compute worker (503 beyond)")
+    prestart_compute: bool = Field(
+        True, description="start the compute workers and load their compiled kernels as the "
+        "service starts (in the background), so that no synchronous request waits seconds for "
+        "a worker to start")
     prebuild_collision: bool = Field(
         True, description="build an imported robot's collision model right after its import "
         "(in a compute worker; stored with the robot) rather than at its first collision query")

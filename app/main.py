@@ -107,6 +107,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         # The job backend (threads, worker processes, a cluster client) lives as long as the
         # served application, not as long as the object: building an app starts nothing.
         api.state.jobs.start()
+        if settings.prestart_compute:
+            api.state.compute.prestart()
         # Compiled kinematics kernels load (or, on a new machine, compile) in the background;
         # until then calls take the numpy path, with the same answers.
         from kinematics.fast import start_warm_up

@@ -14,6 +14,9 @@ DATA = Path(__file__).parent / "data"
 # that name. The Host allow-list's own defaults are tested with explicit settings
 # (tests/app/test_request_guard.py).
 os.environ.setdefault("KINOPLAN_ALLOWED_HOSTS", "*")
+# Apps built by tests start compute workers only when a test asks for one (each would start
+# and warm two processes otherwise); tests/app/test_compute_prestart.py tests the default.
+os.environ.setdefault("KINOPLAN_PRESTART_COMPUTE", "0")
 
 
 @pytest.fixture(scope="session")
