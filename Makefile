@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install run test lint bench clean chromium fuzz
+.PHONY: install run test test-fast kernels lint bench clean chromium fuzz
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,9 +21,33 @@ run: $(STAMP)
 chromium:
 	@command -v chromium >/dev/null 2>&1 || (apt-get update && apt-get install -y chromium)
 
-test: $(STAMP) chromium
+# Test tiers (markers in pyproject.toml): `make test` runs every test on 2 pytest-xdist
+# workers, a module at a time per worker (--dist loadfile: a module's fixtures, such as its
+# Dask cluster or browser page, are built once and its tests run in turn); `make test-fast`
+# leaves out the slow, browser, cluster and paper tests: under 2 minutes, for development.
+FAST := not slow and not browser and not cluster and not paper
+
+# The API fuzz (marked slow) runs in a pytest of its own, after: schemathesis gives its 40
+# operations one node id (under pytest 9.2), and pytest-xdist would run only one of them;
+# test-fast does not collect it (building its cases takes some 9 s).
+FUZZ := tests/app/test_fuzz_api.py
+
+# The numba kernels compiled (a fresh clone: about 2 minutes of CPU, once) or loaded (3 s)
+# before the test workers start: otherwise each worker, and each process the tests start,
+# compiles them at the same time, some inside tests that have a time limit.
+kernels: $(STAMP)
+	$(BIN)/python -c "from kinematics.fast import warm_up as k; k(); \
+	from planning.motion import warm_up as m; m(); \
+	from planning.sequencing.oropt import warm_up as s; s()"
+
+test: $(STAMP) chromium kernels
 	$(BIN)/python -m ruff check app kinematics planning web tests benchmarks tools
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=25 --ignore=$(FUZZ)
+	$(BIN)/python -m pytest -q -p no:xdist $(FUZZ)
+
+test-fast: $(STAMP) kernels
+	$(BIN)/python -m ruff check app kinematics planning web tests benchmarks tools
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=10 -m "$(FAST)" --ignore=$(FUZZ)
 
 lint: $(STAMP)
 	$(BIN)/python -m ruff check app kinematics planning web tests benchmarks tools

@@ -286,6 +286,7 @@ def test_the_graph_sees_imports_inside_functions():
     assert a_cycle(cycle, {"a", "b", "c"}) == ["a", "b", "c", "a"]
 
 
+@pytest.mark.slow
 def test_no_import_cycles():
     graph = import_graph()
     new = [component for component in strongly_connected(graph)
@@ -306,6 +307,7 @@ def test_optimisers_never_import_path_planners():
     assert not offenders, offenders
 
 
+@pytest.mark.slow
 def test_every_library_module_imports_first():
     """Each module of ``kinematics`` and ``planning`` imports in a fresh state (its packages'
     ``__init__`` files run first, which the graph above does not model)."""

@@ -1,4 +1,5 @@
-"""Fixtures of the API tests: a fresh application per test, no viewer, data in a temp dir."""
+"""Fixtures of the API tests: no viewer, data in a temp dir; a fresh application per test
+(``client``), or one per module for the tests that only read (``ro_client``)."""
 
 from __future__ import annotations
 
@@ -18,3 +19,14 @@ def client(tmp_path) -> Iterator[TestClient]:
     api = create_app(Settings(no_viewer=True, data_dir=tmp_path, prebuild_collision=False))
     yield TestClient(api)
     api.state.compute.shutdown()  # worker processes of large requests, if any started
+
+
+@pytest.fixture(scope="module")
+def ro_client(tmp_path_factory) -> Iterator[TestClient]:
+    """``client``'s app, shared by the tests of a module that change nothing in it: they only
+    read, or compute answers (FK, IK, trajectories, cylinders...) without storing anything,
+    adding a robot or scene, or starting a job. A test that writes takes ``client``."""
+    data_dir = tmp_path_factory.mktemp("ro_client")
+    api = create_app(Settings(no_viewer=True, data_dir=data_dir, prebuild_collision=False))
+    yield TestClient(api)
+    api.state.compute.shutdown()

@@ -137,6 +137,7 @@ def _free_port() -> int:
         return sock.getsockname()[1]
 
 
+@pytest.mark.cluster
 def test_python_m_app_serves_health(tmp_path):
     port = _free_port()
     proc = subprocess.Popen(

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 
+import pytest
 from fastapi.testclient import TestClient
 
 from app.compute import ComputePool
@@ -29,6 +30,7 @@ def test_the_service_starts_its_workers_by_default():
     assert Settings.model_fields["prestart_compute"].default is True
 
 
+@pytest.mark.slow
 def test_prestart_starts_every_worker_and_loads_its_kernels():
     pool = ComputePool(2, 8)
     try:

@@ -42,9 +42,10 @@ def _cylinder_routers(api) -> int:
     )
 
 
-@pytest.fixture
-def client(tmp_path) -> TestClient:
-    api = create_app(Settings(no_viewer=True, data_dir=tmp_path))
+@pytest.fixture(scope="module")
+def client(tmp_path_factory) -> TestClient:
+    """One app for the module: its tests only compute (like ``ro_client``)."""
+    api = create_app(Settings(no_viewer=True, data_dir=tmp_path_factory.mktemp("cylinders")))
     if not _cylinder_routers(api):
         api.include_router(cylinders.router)
     return TestClient(api)

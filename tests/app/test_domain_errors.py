@@ -57,33 +57,33 @@ def plan_body(**kw) -> dict:
     ({"method": "sextic", "waypoints": Q3 * 2, "durations": [1.0] * 5,
       "accelerations": [[0.0] * 6] * 6}, ["body", "accelerations"], "only be given with"),
 ])
-def test_trajectory_planning_names_the_field(client, change, loc, words):
-    err = first_error(client.post("/trajectories", json=plan_body(**change)))
+def test_trajectory_planning_names_the_field(ro_client, change, loc, words):
+    err = first_error(ro_client.post("/trajectories", json=plan_body(**change)))
     assert err["loc"] == loc and words in err["msg"] and err["type"] == "value_error", err
 
 
-def test_a_field_error_raised_in_a_worker_process_names_its_field(client):
+def test_a_field_error_raised_in_a_worker_process_names_its_field(ro_client):
     """Time scaling always runs in a compute worker: its FieldError crosses back whole."""
-    err = first_error(client.post("/trajectories", json=plan_body(time_scaling=True)))
+    err = first_error(ro_client.post("/trajectories", json=plan_body(time_scaling=True)))
     assert err["loc"] == ["body", "limits"] and "finite velocity" in err["msg"], err
-    err = first_error(client.post("/trajectories/plot", json=plan_body(durations=[1.0])))
+    err = first_error(ro_client.post("/trajectories/plot", json=plan_body(durations=[1.0])))
     assert err["loc"] == ["body", "durations"], err
 
 
-def test_cartesian_helpers_name_the_path_field(client):
+def test_cartesian_helpers_name_the_path_field(ro_client):
     robot = "glt_palletizer"
     same = [1000.0, 0.0, 900.0]
-    err = first_error(client.post("/trajectories/cartesian", json={
+    err = first_error(ro_client.post("/trajectories/cartesian", json={
         "robot": robot, "path": {"kind": "line", "start": same, "end": same}}))
     assert err["loc"] == ["body", "path", "end"] and "distinct" in err["msg"], err
-    err = first_error(client.post("/trajectories/cartesian", json={
+    err = first_error(ro_client.post("/trajectories/cartesian", json={
         "robot": robot, "points": 2,
         "path": {"kind": "ellipse", "center": same, "radii": [100, 50]}}))
     assert err["loc"] == ["body", "path", "points"] and "3 points" in err["msg"], err
 
 
 # ---- drilling IK, cylinders, robot models ------------------------------------------------
-def test_drill_ik_checks_name_their_field(client, monkeypatch):
+def test_drill_ik_checks_name_their_field(ro_client, monkeypatch):
     import app.api.routes.kinematics as routes
     from kinematics.drilling import drill_ik
 
@@ -98,7 +98,7 @@ def test_drill_ik_checks_name_their_field(client, monkeypatch):
     # The route hands drill_ik's FieldError on as it is: a feed value the IK refuses.
     monkeypatch.setattr(routes, "drill_ik", lambda model, holes, d7, roll: drill_ik(
         model, holes, d7=math.nan, roll=roll))
-    err = first_error(client.post("/robots/tunnel_drill_arm/drill-ik",
+    err = first_error(ro_client.post("/robots/tunnel_drill_arm/drill-ik",
                                   json={"holes": [[9000.0, 0.0, 1000.0]]}))
     assert err["loc"] == ["body", "d7"] and "finite" in err["msg"], err
 

@@ -225,6 +225,7 @@ def _cancel_accepted_job(case, response, api) -> None:
         cancel.Case(path_parameters={"job_id": job_id}).call(app=api)
 
 
+@pytest.mark.slow
 @schema.parametrize()
 # Every number a request carries is bounded, so no computation may overflow: a numeric
 # warning in any handler fails the case.

@@ -11,8 +11,8 @@ def _names_field(detail: list[dict], field: str) -> bool:
     return any(field in entry.get("loc", []) for entry in detail)
 
 
-def test_health(client):
-    r = client.get("/health")
+def test_health(ro_client):
+    r = ro_client.get("/health")
     assert r.status_code == 200
     body = r.json()
     assert body["status"] == "ok"
@@ -20,8 +20,8 @@ def test_health(client):
     assert body["jobs_backend"] == "local"
 
 
-def test_list_robots_has_the_builtins(client):
-    r = client.get("/robots")
+def test_list_robots_has_the_builtins(ro_client):
+    r = ro_client.get("/robots")
     assert r.status_code == 200
     robots = {entry["id"]: entry for entry in r.json()}
     assert set(BUILTINS) <= set(robots)
@@ -39,8 +39,8 @@ def test_list_robots_has_the_builtins(client):
 
 
 @pytest.mark.parametrize("robot_id", sorted(BUILTINS))
-def test_get_robot_model(client, robot_id):
-    r = client.get(f"/robots/{robot_id}")
+def test_get_robot_model(ro_client, robot_id):
+    r = ro_client.get(f"/robots/{robot_id}")
     assert r.status_code == 200
     model = r.json()
     assert {"convention", "joints", "base", "tool"} <= set(model)
@@ -51,20 +51,20 @@ def test_get_robot_model(client, robot_id):
         assert model[key][3] == [0, 0, 0, 1]
 
 
-def test_unknown_robot_get_is_404(client):
-    r = client.get("/robots/no_such_robot")
+def test_unknown_robot_get_is_404(ro_client):
+    r = ro_client.get("/robots/no_such_robot")
     assert r.status_code == 404
     assert _names_field(r.json()["detail"], "robot_id")
 
 
-def test_unknown_robot_fk_is_404(client):
-    r = client.post("/robots/no_such_robot/fk", json={"q": [0.0] * 6})
+def test_unknown_robot_fk_is_404(ro_client):
+    r = ro_client.post("/robots/no_such_robot/fk", json={"q": [0.0] * 6})
     assert r.status_code == 404
     assert _names_field(r.json()["detail"], "robot_id")
 
 
-def test_openapi_lists_the_paths(client):
-    r = client.get("/openapi.json")
+def test_openapi_lists_the_paths(ro_client):
+    r = ro_client.get("/openapi.json")
     assert r.status_code == 200
     doc = r.json()
     assert doc["info"]["title"]

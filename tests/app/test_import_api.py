@@ -105,6 +105,7 @@ def _reference_fk(urdf: str, q: np.ndarray, names: list[str]) -> np.ndarray:
     return out
 
 
+@pytest.mark.slow
 def test_import_serves_stores_and_exports_the_robot(app_dir):
     client = app_dir()
     r = _import(client, "glt_urdf", _archive(), srdf=SRDF.encode(), name="GLT from URDF")
@@ -167,6 +168,7 @@ def test_import_serves_stores_and_exports_the_robot(app_dir):
     assert client2.get("/robots/glt_urdf").status_code == 404
 
 
+@pytest.mark.slow
 def test_the_collision_model_is_built_at_import_and_stored(app_dir):
     client = app_dir(prebuild=True)
     with client:  # the lifespan runs: the build is a task on the service's loop
@@ -201,6 +203,7 @@ def _error(r) -> tuple[list, str]:
     return detail["loc"], detail["msg"]
 
 
+@pytest.mark.slow
 def test_missing_mesh_names_the_link_and_file(client):
     loc, msg = _error(_import(client, "x", _archive(skip="forearm.stl")))
     assert loc[:2] == ["body", "file"]
@@ -223,6 +226,7 @@ def test_two_urdfs_need_the_urdf_field(client):
     assert r.status_code == 201, r.text
 
 
+@pytest.mark.slow
 def test_a_mesh_that_is_not_a_mesh(client):
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w") as z:
@@ -234,6 +238,7 @@ def test_a_mesh_that_is_not_a_mesh(client):
     assert "upper_arm.stl" in msg or any("upper_arm" in str(p) for p in loc)
 
 
+@pytest.mark.slow
 def test_a_floating_joint_on_the_chain_and_a_cycle(client):
     text = _urdf().replace('<joint name="elbow" type="revolute">',
                            '<joint name="elbow" type="floating">')
@@ -270,6 +275,7 @@ def test_upload_size_is_capped(client):
     assert r.status_code == 413
 
 
+@pytest.mark.slow
 def test_srdf_group_gives_the_chain(client):
     r = _import(client, "grp", _archive(), srdf=SRDF.encode(), group="arm")
     assert r.status_code == 201, r.text

@@ -61,45 +61,45 @@ def joint_limits(client, robot_id: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 @pytest.mark.parametrize("q_deg, T_paper", GLT_FK)
-def test_glt_fk_matches_paper_table2_and_eq14_16(client, q_deg, T_paper):
-    T = fk_poses(client, GLT, rad(q_deg))[0]
+def test_glt_fk_matches_paper_table2_and_eq14_16(ro_client, q_deg, T_paper):
+    T = fk_poses(ro_client, GLT, rad(q_deg))[0]
     T_paper = np.asarray(T_paper)
     np.testing.assert_allclose(T[:3, 3], T_paper[:3, 3], atol=0.1)
     np.testing.assert_allclose(T[:3, :3], T_paper[:3, :3], atol=1e-3)
     np.testing.assert_allclose(T[3], [0, 0, 0, 1], atol=1e-12)
 
 
-def test_glt_fk_batch_returns_one_pose_per_configuration(client):
+def test_glt_fk_batch_returns_one_pose_per_configuration(ro_client):
     q = [rad(q_deg) for q_deg, _ in GLT_FK]
-    poses = fk_poses(client, GLT, q)
+    poses = fk_poses(ro_client, GLT, q)
     assert poses.shape == (3, 4, 4)
     for pose, (_, T_paper) in zip(poses, GLT_FK):
         np.testing.assert_allclose(pose[:3, 3], np.asarray(T_paper)[:3, 3], atol=0.1)
     # Batch and single calls agree.
-    np.testing.assert_allclose(fk_poses(client, GLT, q[1])[0], poses[1], atol=1e-9)
+    np.testing.assert_allclose(fk_poses(ro_client, GLT, q[1])[0], poses[1], atol=1e-9)
 
 
 @pytest.mark.parametrize("robot_id, dof", [("glt_palletizer", 6), ("hyper_redundant_9dof", 9)])
-def test_fk_all_frames(client, robot_id, dof):
+def test_fk_all_frames(ro_client, robot_id, dof):
     q = np.random.default_rng(3).uniform(-1.0, 1.0, size=(4, dof))
-    r = client.post(f"/robots/{robot_id}/fk", json={"q": q.tolist(), "frames": "all"})
+    r = ro_client.post(f"/robots/{robot_id}/fk", json={"q": q.tolist(), "frames": "all"})
     assert r.status_code == 200, r.text
     body = r.json()
     poses, frames = np.asarray(body["poses"]), np.asarray(body["frames"])
     assert poses.shape == (4, 4, 4)
     assert frames.shape == (4, dof + 1, 4, 4)
     np.testing.assert_allclose(frames[:, -1], poses, atol=1e-9)
-    base = np.asarray(client.get(f"/robots/{robot_id}").json()["base"])
+    base = np.asarray(ro_client.get(f"/robots/{robot_id}").json()["base"])
     np.testing.assert_allclose(frames[:, 0], np.broadcast_to(base, (4, 4, 4)), atol=1e-9)
     # Without "frames": "all" the same poses and no frames.
-    r = client.post(f"/robots/{robot_id}/fk", json={"q": q.tolist()})
+    r = ro_client.post(f"/robots/{robot_id}/fk", json={"q": q.tolist()})
     np.testing.assert_allclose(r.json()["poses"], poses, atol=1e-9)
     assert r.json().get("frames") is None
 
 
 @pytest.mark.parametrize("q_deg, xy_mm", PILE_FK_XY)
-def test_pile_driver_fk_xy_matches_paper(client, q_deg, xy_mm):
-    T = fk_poses(client, PILE, rad(q_deg))[0]
+def test_pile_driver_fk_xy_matches_paper(ro_client, q_deg, xy_mm):
+    T = fk_poses(ro_client, PILE, rad(q_deg))[0]
     np.testing.assert_allclose(T[:2, 3], xy_mm, atol=0.5)
 
 
@@ -107,9 +107,9 @@ def test_pile_driver_fk_xy_matches_paper(client, q_deg, xy_mm):
 # Inverse kinematics
 
 
-def test_glt_ik_of_printed_matrices_recovers_fk_input(client):
+def test_glt_ik_of_printed_matrices_recovers_fk_input(ro_client):
     poses = [T for _, T in GLT_FK]
-    r = client.post(f"{GLT}/ik", json={"pose": poses, "all_solutions": True})
+    r = ro_client.post(f"{GLT}/ik", json={"pose": poses, "all_solutions": True})
     assert r.status_code == 200, r.text
     results = r.json()["results"]
     assert len(results) == 3
@@ -123,10 +123,10 @@ def test_glt_ik_of_printed_matrices_recovers_fk_input(client):
         assert worst.min() < 0.05, f"{q_deg} not among {np.round(sols, 2).tolist()}"
 
 
-def test_pile_driver_analytic_ik_roundtrip(client):
+def test_pile_driver_analytic_ik_roundtrip(ro_client):
     q = np.asarray(rad([50, 30, -20, -10, 5, 20]))
-    T = fk_poses(client, PILE, q)[0]
-    r = client.post(f"{PILE}/ik", json={"pose": T.tolist(), "method": "auto"})
+    T = fk_poses(ro_client, PILE, q)[0]
+    r = ro_client.post(f"{PILE}/ik", json={"pose": T.tolist(), "method": "auto"})
     assert r.status_code == 200, r.text
     res = r.json()["results"][0]
     assert res["success"] is True, res["message"]
@@ -136,11 +136,11 @@ def test_pile_driver_analytic_ik_roundtrip(client):
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_hyper_redundant_numeric_ik(client, seed):
-    lower, upper = joint_limits(client, "hyper_redundant_9dof")
+def test_hyper_redundant_numeric_ik(ro_client, seed):
+    lower, upper = joint_limits(ro_client, "hyper_redundant_9dof")
     q = np.random.default_rng(seed).uniform(lower, upper)
-    T = fk_poses(client, HYPER, q)[0]
-    r = client.post(f"{HYPER}/ik", json={"pose": T.tolist(), "method": "numeric"})
+    T = fk_poses(ro_client, HYPER, q)[0]
+    r = ro_client.post(f"{HYPER}/ik", json={"pose": T.tolist(), "method": "numeric"})
     assert r.status_code == 200, r.text
     res = r.json()["results"][0]
     assert res["success"] is True, res["message"]
@@ -149,15 +149,15 @@ def test_hyper_redundant_numeric_ik(client, seed):
     q_ik = np.asarray(res["q"])
     assert q_ik.shape == (9,)
     assert np.all(q_ik >= lower - 1e-9) and np.all(q_ik <= upper + 1e-9)
-    T_ik = fk_poses(client, HYPER, q_ik)[0]
+    T_ik = fk_poses(ro_client, HYPER, q_ik)[0]
     assert np.linalg.norm(T_ik[:3, 3] - T[:3, 3]) < 1e-4
     np.testing.assert_allclose(T_ik[:3, :3], T[:3, :3], atol=1e-6)
 
 
-def test_unreachable_pose_is_200_with_success_false(client):
+def test_unreachable_pose_is_200_with_success_false(ro_client):
     T = np.eye(4)
     T[0, 3] = 5000.0
-    r = client.post(f"{GLT}/ik", json={"pose": T.tolist()})
+    r = ro_client.post(f"{GLT}/ik", json={"pose": T.tolist()})
     assert r.status_code == 200, r.text
     res = r.json()["results"][0]
     assert res["success"] is False
@@ -166,12 +166,12 @@ def test_unreachable_pose_is_200_with_success_false(client):
 
 
 @pytest.mark.parametrize("robot_id", ["glt_palletizer", "hyper_redundant_9dof"])
-def test_numeric_ik_of_absurdly_far_pose_is_not_a_server_error(client, robot_id):
-    """API.md: never 500 for anything a client sends. A finite but huge target (1e308 mm)
+def test_numeric_ik_of_absurdly_far_pose_is_not_a_server_error(ro_client, robot_id):
+    """API.md: never 500 for anything a ro_client sends. A finite but huge target (1e308 mm)
     must give 422 or a result with success false."""
     T = np.eye(4)
     T[0, 3] = 1e308
-    r = client.post(f"/robots/{robot_id}/ik", json={"pose": T.tolist(), "method": "numeric"})
+    r = ro_client.post(f"/robots/{robot_id}/ik", json={"pose": T.tolist(), "method": "numeric"})
     assert r.status_code in (200, 422), r.text
     if r.status_code == 200:
         assert r.json()["results"][0]["success"] is False
@@ -193,11 +193,11 @@ def skew_to_vector(S: np.ndarray) -> np.ndarray:
         ("hyper_redundant_9dof", [0.3, -0.2, 0.5, 0.1, -0.4, 0.6, 0.2, -0.3, 0.7]),
     ],
 )
-def test_jacobian_matches_finite_differences(client, robot_id, q):
+def test_jacobian_matches_finite_differences(ro_client, robot_id, q):
     url = f"/robots/{robot_id}"
     q = np.asarray(q, dtype=float)
     dof = q.size
-    r = client.post(f"{url}/jacobian", json={"q": q.tolist()})
+    r = ro_client.post(f"{url}/jacobian", json={"q": q.tolist()})
     assert r.status_code == 200, r.text
     body = r.json()
     J = np.asarray(body["jacobian"])
@@ -207,12 +207,12 @@ def test_jacobian_matches_finite_differences(client, robot_id, q):
 
     h = 1e-6
     steps = np.eye(dof) * h
-    poses = fk_poses(client, url, np.vstack([q + steps, q - steps]))
+    poses = fk_poses(ro_client, url, np.vstack([q + steps, q - steps]))
     plus, minus = poses[:dof], poses[dof:]
     J_lin = ((plus[:, :3, 3] - minus[:, :3, 3]) / (2 * h)).T
     np.testing.assert_allclose(J[:3], J_lin, atol=1e-3 * max(1.0, np.abs(J_lin).max()))
     # Angular rows: dR/dq_i R^T = skew(w_i).
-    R = fk_poses(client, url, q)[0][:3, :3]
+    R = fk_poses(ro_client, url, q)[0][:3, :3]
     J_ang = np.array(
         [skew_to_vector((plus[i, :3, :3] - minus[i, :3, :3]) / (2 * h) @ R.T) for i in range(dof)]
     ).T
@@ -223,8 +223,8 @@ def test_jacobian_matches_finite_differences(client, robot_id, q):
 # Workspace
 
 
-def test_pile_driver_workspace_ranges(client):
-    r = client.post(f"{PILE}/workspace", json={"samples": 30000, "seed": 0})
+def test_pile_driver_workspace_ranges(ro_client):
+    r = ro_client.post(f"{PILE}/workspace", json={"samples": 30000, "seed": 0})
     assert r.status_code == 200, r.text
     ws = r.json()
     assert ws["samples"] == 30000
@@ -245,19 +245,19 @@ def test_pile_driver_workspace_ranges(client):
 @pytest.mark.parametrize(
     "samples, return_points, expected", [(500, 50, 50), (40, 100, 40), (50, 0, 0)]
 )
-def test_workspace_return_points(client, samples, return_points, expected):
+def test_workspace_return_points(ro_client, samples, return_points, expected):
     body = {"samples": samples, "seed": 1, "return_points": return_points}
-    r = client.post(f"{PILE}/workspace", json=body)
+    r = ro_client.post(f"{PILE}/workspace", json=body)
     assert r.status_code == 200, r.text
     assert len(r.json()["points"]) == expected
 
 
-def test_workspace_same_seed_same_answer(client):
+def test_workspace_same_seed_same_answer(ro_client):
     body = {"samples": 3000, "seed": 7, "return_points": 200}
-    first = client.post(f"{GLT}/workspace", json=body).json()
-    second = client.post(f"{GLT}/workspace", json=body).json()
+    first = ro_client.post(f"{GLT}/workspace", json=body).json()
+    second = ro_client.post(f"{GLT}/workspace", json=body).json()
     assert first == second
-    other = client.post(f"{GLT}/workspace", json={**body, "seed": 8}).json()
+    other = ro_client.post(f"{GLT}/workspace", json={**body, "seed": 8}).json()
     assert other["points"] != first["points"]
 
 
@@ -318,11 +318,11 @@ ERROR_CASES = [
 
 
 @pytest.mark.parametrize("url, body, status, field", ERROR_CASES)
-def test_error_statuses_name_the_field(client, url, body, status, field):
+def test_error_statuses_name_the_field(ro_client, url, body, status, field):
     if isinstance(body, str):
-        r = client.post(url, content=body, headers={"content-type": "application/json"})
+        r = ro_client.post(url, content=body, headers={"content-type": "application/json"})
     else:
-        r = client.post(url, json=body)
+        r = ro_client.post(url, json=body)
     assert r.status_code == status, r.text
     detail = r.json()["detail"]
     assert isinstance(detail, list) and detail
@@ -331,15 +331,15 @@ def test_error_statuses_name_the_field(client, url, body, status, field):
     assert len(r.content) < 2000
 
 
-def test_analytic_on_hyper_redundant_is_422_even_for_reachable_pose(client):
-    T = fk_poses(client, HYPER, [0.1] * 9)[0]
-    r = client.post(f"{HYPER}/ik", json={"pose": T.tolist(), "method": "analytic"})
+def test_analytic_on_hyper_redundant_is_422_even_for_reachable_pose(ro_client):
+    T = fk_poses(ro_client, HYPER, [0.1] * 9)[0]
+    r = ro_client.post(f"{HYPER}/ik", json={"pose": T.tolist(), "method": "analytic"})
     assert r.status_code == 422
     assert names_field(r.json()["detail"], "method")
 
 
-def test_viewer_show_without_viewer_is_503(client):
-    r = client.post("/viewer/show", json={"robot": "glt_palletizer", "q": [0.0] * 6})
+def test_viewer_show_without_viewer_is_503(ro_client):
+    r = ro_client.post("/viewer/show", json={"robot": "glt_palletizer", "q": [0.0] * 6})
     assert r.status_code == 503
     assert r.json()["detail"]
 
@@ -348,9 +348,9 @@ def reject_constant(token: str):
     raise ValueError(f"non-standard JSON number {token}")
 
 
-def test_unreachable_ik_answer_is_strict_json(client):
+def test_unreachable_ik_answer_is_strict_json(ro_client):
     """Unreachable targets report null errors, never NaN/Infinity (not valid JSON)."""
-    r = client.post(f"{GLT}/ik", json={"pose": FAR})
+    r = ro_client.post(f"{GLT}/ik", json={"pose": FAR})
     assert r.status_code == 200
     res = json.loads(r.text, parse_constant=reject_constant)["results"][0]
     for value in (res["position_error"], res["rotation_error"]):
@@ -375,31 +375,31 @@ def random_q(client, robot_id: str, n: int, seed: int = 3) -> np.ndarray:
 
 
 @pytest.mark.parametrize("n", [1, 7, 40])
-def test_fk_npy_answer_equals_the_json_answer(client, n):
-    q = random_q(client, "glt_palletizer", n)
+def test_fk_npy_answer_equals_the_json_answer(ro_client, n):
+    q = random_q(ro_client, "glt_palletizer", n)
     body = {"q": q.tolist() if n > 1 else q[0].tolist()}
-    poses = npy_answer(client.post(f"{GLT}/fk", json=body, headers=NPY))
+    poses = npy_answer(ro_client.post(f"{GLT}/fk", json=body, headers=NPY))
     assert poses.dtype == np.float64 and poses.shape == (n, 4, 4)
-    as_json = np.asarray(client.post(f"{GLT}/fk", json=body).json()["poses"])
+    as_json = np.asarray(ro_client.post(f"{GLT}/fk", json=body).json()["poses"])
     np.testing.assert_array_equal(poses, as_json)  # JSON floats round-trip exactly
 
 
-def test_fk_all_frames_npy_answer(client):
-    q = random_q(client, "hyper_redundant_9dof", 5)
+def test_fk_all_frames_npy_answer(ro_client):
+    q = random_q(ro_client, "hyper_redundant_9dof", 5)
     body = {"q": q.tolist(), "frames": "all"}
-    frames = npy_answer(client.post(f"{HYPER}/fk", json=body, headers=NPY))
+    frames = npy_answer(ro_client.post(f"{HYPER}/fk", json=body, headers=NPY))
     assert frames.shape == (5, 9 + 1, 4, 4)
-    answer = client.post(f"{HYPER}/fk", json=body).json()
+    answer = ro_client.post(f"{HYPER}/fk", json=body).json()
     np.testing.assert_array_equal(frames, answer["frames"])
     np.testing.assert_array_equal(frames[:, -1], answer["poses"])
 
 
-def test_ik_npy_answer_is_the_best_solution_per_pose_with_nan_rows(client):
-    q = random_q(client, "glt_palletizer", 3, seed=5)
-    T = fk_poses(client, GLT, q)
+def test_ik_npy_answer_is_the_best_solution_per_pose_with_nan_rows(ro_client):
+    q = random_q(ro_client, "glt_palletizer", 3, seed=5)
+    T = fk_poses(ro_client, GLT, q)
     body = {"pose": [*T.tolist(), FAR]}  # three reachable poses, one far out of reach
-    rows = npy_answer(client.post(f"{GLT}/ik", json=body, headers=NPY))
-    results = client.post(f"{GLT}/ik", json=body).json()["results"]
+    rows = npy_answer(ro_client.post(f"{GLT}/ik", json=body, headers=NPY))
+    results = ro_client.post(f"{GLT}/ik", json=body).json()["results"]
     assert rows.shape == (4, 6)
     for row, res in zip(rows, results):
         if res["q"] is None:
@@ -410,23 +410,23 @@ def test_ik_npy_answer_is_the_best_solution_per_pose_with_nan_rows(client):
     assert all(r["success"] for r in results[:3])
 
 
-def test_jacobian_and_workspace_npy_answers(client):
-    q = random_q(client, "pile_driver", 1)[0].tolist()
-    J = npy_answer(client.post(f"{PILE}/jacobian", json={"q": q}, headers=NPY))
-    np.testing.assert_array_equal(J, client.post(f"{PILE}/jacobian", json={"q": q}).json()[
+def test_jacobian_and_workspace_npy_answers(ro_client):
+    q = random_q(ro_client, "pile_driver", 1)[0].tolist()
+    J = npy_answer(ro_client.post(f"{PILE}/jacobian", json={"q": q}, headers=NPY))
+    np.testing.assert_array_equal(J, ro_client.post(f"{PILE}/jacobian", json={"q": q}).json()[
         "jacobian"])
     assert J.shape == (6, 6)
     body = {"samples": 2000, "seed": 4, "return_points": 300, "projections": False}
-    points = npy_answer(client.post(f"{PILE}/workspace", json=body, headers=NPY))
+    points = npy_answer(ro_client.post(f"{PILE}/workspace", json=body, headers=NPY))
     assert points.shape == (300, 3)
     np.testing.assert_array_equal(points,
-                                  client.post(f"{PILE}/workspace", json=body).json()["points"])
+                                  ro_client.post(f"{PILE}/workspace", json=body).json()["points"])
 
 
-def test_npy_is_only_sent_when_asked_for(client):
-    r = client.post(f"{GLT}/fk", json={"q": [0.0] * 6}, headers={"accept": "*/*"})
+def test_npy_is_only_sent_when_asked_for(ro_client):
+    r = ro_client.post(f"{GLT}/fk", json={"q": [0.0] * 6}, headers={"accept": "*/*"})
     assert r.headers["content-type"] == "application/json" and r.json()["poses"]
-    bad = client.post(f"{GLT}/fk", json={"q": [0.0] * 5}, headers=NPY)
+    bad = ro_client.post(f"{GLT}/fk", json={"q": [0.0] * 5}, headers=NPY)
     assert bad.status_code == 422 and names_field(bad.json()["detail"], "q")  # errors: JSON
 
 
@@ -440,12 +440,12 @@ CALLS = [
 
 
 @pytest.mark.parametrize("url, body", CALLS)
-def test_orjson_answers_are_the_standard_librarys_json(client, monkeypatch, url, body):
+def test_orjson_answers_are_the_standard_librarys_json(ro_client, monkeypatch, url, body):
     """Strict JSON (no NaN or Infinity token), the same values as the standard library's
     encoder gives, and the same field order."""
-    fast = client.post(url, json=body)
+    fast = ro_client.post(url, json=body)
     monkeypatch.setattr(responses, "legacy", True)
-    slow = client.post(url, json=body)
+    slow = ro_client.post(url, json=body)
     assert fast.status_code == slow.status_code == 200
     assert fast.headers["content-type"] == "application/json"
     parsed = json.loads(fast.content, parse_constant=reject_constant)
@@ -469,22 +469,22 @@ def test_npy_bytes_round_trip():
     np.testing.assert_array_equal(back, a)
 
 
-def test_bodies_orjson_refuses_are_read_as_before(client):
+def test_bodies_orjson_refuses_are_read_as_before(ro_client):
     """A NaN token is not JSON: orjson refuses the body, the standard library reads it, and
     the answer is the same 422 naming the field as without orjson."""
-    r = client.post(f"{GLT}/fk", content='{"q":[0,0,0,0,0,NaN]}',
+    r = ro_client.post(f"{GLT}/fk", content='{"q":[0,0,0,0,0,NaN]}',
                     headers={"content-type": "application/json"})
     assert r.status_code == 422 and names_field(r.json()["detail"], "q")
-    broken = client.post(f"{GLT}/fk", content='{"q":[0,0,', headers={
+    broken = ro_client.post(f"{GLT}/fk", content='{"q":[0,0,', headers={
         "content-type": "application/json"})
     assert broken.status_code == 422
     assert broken.json()["detail"][0]["type"] == "json_invalid"
 
 
-def test_a_body_that_is_not_text_is_400_as_before(client):
-    r = client.post(f"{GLT}/fk", content=b"\xbbUF\xa1",
+def test_a_body_that_is_not_text_is_400_as_before(ro_client):
+    r = ro_client.post(f"{GLT}/fk", content=b"\xbbUF\xa1",
                     headers={"content-type": "application/json"})
     assert r.status_code == 400 and r.json()["detail"][0]["type"] == "http_error"
-    r = client.post(f"{GLT}/ik", content=b"\xbbUF\xa1",
+    r = ro_client.post(f"{GLT}/ik", content=b"\xbbUF\xa1",
                     headers={"content-type": "application/json"})
     assert r.status_code == 400

@@ -44,6 +44,7 @@ def test_a_four_bar_that_cannot_close_is_422_naming_the_field(client, l_mn):
     assert client.get("/robots/pd_short_rocker").status_code == 404
 
 
+@pytest.mark.slow
 def test_the_unmodified_copy_is_stored_and_times_optimally(client):
     r = client.post("/robots", json=_pile("pd_copy"))
     assert r.status_code == 201, r.text

@@ -70,14 +70,14 @@ def _error(r) -> tuple[list, str]:
 
 
 # ---- plans ----------------------------------------------------------------------------------
-def test_a_planned_path_goes_around_the_ball_and_every_segment_is_free(client):
+def test_a_planned_path_goes_around_the_ball_and_every_segment_is_free(ro_client):
     model = builtin_model(ROBOT)
     cm = RobotCollisionModel.from_model(model)
     scene = CollisionScene.from_request(SCENE)
     # The problem is not trivial: the straight move passes through the ball.
     assert collides(cm, _dense(np.array([START, GOAL]), 0.01), scene, exact=True).any()
 
-    r = _plan(client)
+    r = _plan(ro_client)
     assert r.status_code == 200, r.text
     out = r.json()
     assert out["status"] == "ok" and out["robot"] == ROBOT
@@ -85,7 +85,7 @@ def test_a_planned_path_goes_around_the_ball_and_every_segment_is_free(client):
     # robot: no field dropped or renamed on the way.
     written = MotionResult(MotionStatus.OK, "ok", np.zeros((2, 6))).to_dict(joint_names=[])
     assert set(out) == set(written) | {"robot"}
-    joints = [j["name"] for j in client.get(f"/robots/{ROBOT}").json()["joints"]]
+    joints = [j["name"] for j in ro_client.get(f"/robots/{ROBOT}").json()["joints"]]
     assert out["joints"] == joints
     path = np.array(out["path"])
     assert path.shape[1] == 6 and len(path) >= 3
@@ -109,8 +109,8 @@ def test_a_planned_path_goes_around_the_ball_and_every_segment_is_free(client):
     assert not collides(cm, q, scene, exact=True).any()
 
 
-def test_without_a_trajectory_and_without_a_scene(client):
-    r = _plan(client, scene=None, trajectory=False, planner="rrt_connect")
+def test_without_a_trajectory_and_without_a_scene(ro_client):
+    r = _plan(ro_client, scene=None, trajectory=False, planner="rrt_connect")
     out = r.json()
     assert r.status_code == 200 and out["status"] == "ok", r.text
     assert out["trajectory"] is None and out["planner"] == "rrt_connect"
@@ -118,10 +118,10 @@ def test_without_a_trajectory_and_without_a_scene(client):
     np.testing.assert_allclose(out["path"], [START, GOAL], atol=1e-12)
 
 
-def test_a_goal_pose_is_reached_through_the_robot_model(client):
+def test_a_goal_pose_is_reached_through_the_robot_model(ro_client):
     model = builtin_model(ROBOT)
     T_world_tool = fk(model, np.array(GOAL))
-    r = _plan(client, goal={"pose": T_world_tool.tolist()})
+    r = _plan(ro_client, goal={"pose": T_world_tool.tolist()})
     out = r.json()
     assert r.status_code == 200 and out["status"] == "ok", r.text
     reached = fk(model, np.array(out["path"][-1]))
@@ -130,8 +130,8 @@ def test_a_goal_pose_is_reached_through_the_robot_model(client):
     np.testing.assert_allclose(out["goal"], out["path"][-1], atol=1e-12)
 
 
-def test_a_start_in_collision_names_the_pairs(client):
-    r = _plan(client, start=MIDDLE)
+def test_a_start_in_collision_names_the_pairs(ro_client):
+    r = _plan(ro_client, start=MIDDLE)
     out = r.json()
     assert r.status_code == 200, r.text
     assert out["status"] == "start_in_collision"
@@ -140,29 +140,30 @@ def test_a_start_in_collision_names_the_pairs(client):
     assert any("ball" in p for p in out["pairs"])
 
 
-def test_a_margin_counts_near_misses_as_collisions(client):
+def test_a_margin_counts_near_misses_as_collisions(ro_client):
     cm = RobotCollisionModel.from_model(builtin_model(ROBOT))
     report = check(cm, np.array(START), CollisionScene.from_request(SCENE),
                    self_collision=False, exact_distance=True)
     gap = float(report.distance)  # mm between the robot at the start and the ball
     assert gap > 20
-    near = _plan(client, margin=gap / 2, self_collision=False, trajectory=False).json()
+    near = _plan(ro_client, margin=gap / 2, self_collision=False, trajectory=False).json()
     assert near["status"] == "ok", near["message"]
-    r = _plan(client, margin=gap + 10, self_collision=False, trajectory=False)
+    r = _plan(ro_client, margin=gap + 10, self_collision=False, trajectory=False)
     assert r.status_code == 200 and r.json()["status"] == "start_in_collision", r.text
     assert any("ball" in p for p in r.json()["pairs"])
 
 
-def test_an_unreachable_goal_pose_is_a_status(client):
+def test_an_unreachable_goal_pose_is_a_status(ro_client):
     T = np.eye(4)
     T[:3, 3] = [100_000.0, 0.0, 0.0]  # 100 m away: beyond the arm's reach
-    r = _plan(client, goal={"pose": T.tolist()})
+    r = _plan(ro_client, goal={"pose": T.tolist()})
     out = r.json()
     assert r.status_code == 200, r.text
     assert out["status"] == "goal_unreachable" and out["path"] == []
     assert out["message"]
 
 
+@pytest.mark.slow
 def test_a_stored_scene_by_id(client):
     stored = {"id": "motion_cell", "objects": [_ball(name="pillar")]}
     assert client.post("/scenes", json=stored).status_code == 201
@@ -177,10 +178,10 @@ def test_a_stored_scene_by_id(client):
 
 
 # ---- errors ---------------------------------------------------------------------------------
-def test_unknown_robot_and_scene_are_404(client):
-    r = _plan(client, robot="no_such_robot")
+def test_unknown_robot_and_scene_are_404(ro_client):
+    r = _plan(ro_client, robot="no_such_robot")
     assert r.status_code == 404 and r.json()["detail"][0]["loc"] == ["path", "robot_id"]
-    r = _plan(client, scene="no_such_scene")
+    r = _plan(ro_client, scene="no_such_scene")
     assert r.status_code == 404 and "no_such_scene" in r.json()["detail"][0]["msg"]
 
 
@@ -207,24 +208,24 @@ def test_unknown_robot_and_scene_are_404(client):
      ["body", "scene", "objects", 0, "radius"]),
     ({"scene": {"boxes": []}}, ["body", "scene", "boxes"]),
 ])
-def test_bad_fields_are_422_naming_them(client, body, loc):
-    assert _error(_plan(client, **body))[0] == loc
+def test_bad_fields_are_422_naming_them(ro_client, body, loc):
+    assert _error(_plan(ro_client, **body))[0] == loc
 
 
-def test_non_finite_numbers_are_422(client):
+def test_non_finite_numbers_are_422(ro_client):
     text = ('{"start": [NaN, 0, 0, 0, 0, 0], "goal": {"q": [0, 0, 0, 0, 0, 0]}}')
-    r = client.post(f"/robots/{ROBOT}/motion", content=text,
+    r = ro_client.post(f"/robots/{ROBOT}/motion", content=text,
                     headers={"Content-Type": "application/json"})
     assert _error(r)[0] == ["body", "start", 0]
     text = ('{"start": [0, 0, 0, 0, 0, 0], "goal": {"q": [0, 0, 0, 0, 0, 0]}, '
             '"time_limit": Infinity}')
-    r = client.post(f"/robots/{ROBOT}/motion", content=text,
+    r = ro_client.post(f"/robots/{ROBOT}/motion", content=text,
                     headers={"Content-Type": "application/json"})
     assert _error(r)[0] == ["body", "time_limit"]
 
 
-def test_the_time_limit_message_points_at_jobs(client):
-    loc, msg = _error(_plan(client, time_limit=5))
+def test_the_time_limit_message_points_at_jobs(ro_client):
+    loc, msg = _error(_plan(ro_client, time_limit=5))
     assert loc == ["body", "time_limit"] and "2" in msg
 
 
@@ -241,6 +242,7 @@ def _imported_urdf() -> str:
     return text
 
 
+@pytest.mark.slow
 def test_an_imported_robot_plans_with_its_stored_collision_model(client):
     r = client.post("/robots/import", files={"file": ("glt.urdf", _imported_urdf().encode(),
                                                       "text/xml")},

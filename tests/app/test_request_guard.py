@@ -41,34 +41,34 @@ def _locs(r) -> list:
 
 # ---- sizes before contents ------------------------------------------------------------
 @pytest.mark.parametrize("path, field", [(f"{GLT}/ik", "pose"), (f"{GLT}/fk", "q")])
-def test_a_long_flat_list_costs_one_error(client, path, field):
+def test_a_long_flat_list_costs_one_error(ro_client, path, field):
     # Scaled-down version of the 60 MB list of zeros that used to take the API down.
-    r = client.post(path, json={field: [0] * 200_000})
+    r = ro_client.post(path, json={field: [0] * 200_000})
     assert r.status_code in (413, 422)
     assert _locs(r) == [["body", field]]
     assert len(r.content) < 1_000
 
 
-def test_too_many_configurations_is_413_before_they_are_read(client):
+def test_too_many_configurations_is_413_before_they_are_read(ro_client):
     # Each row is garbage: were rows validated first, this would be 100,001 errors.
-    r = client.post(f"{GLT}/fk", json={"q": [["x"]] * 100_001})
+    r = ro_client.post(f"{GLT}/fk", json={"q": [["x"]] * 100_001})
     assert r.status_code == 413
     assert r.json()["detail"] == [{"loc": ["body", "q"], "type": "too_large",
                                    "msg": "at most 100000 configurations per call, got 100001"}]
 
 
-def test_a_bad_element_is_named_once(client):
+def test_a_bad_element_is_named_once(ro_client):
     q = [[0.0] * 6 for _ in range(1_000)]
     q[700][4] = "seven"
-    r = client.post(f"{GLT}/fk", json={"q": q})
+    r = ro_client.post(f"{GLT}/fk", json={"q": q})
     assert r.status_code == 422
     (err,) = r.json()["detail"]
     assert err["loc"] == ["body", "q"] and err["msg"].startswith("[700][4]:")
 
 
-def test_a_422_lists_at_most_a_few_dozen_errors(client):
+def test_a_422_lists_at_most_a_few_dozen_errors(ro_client):
     holes = [["a", "b", "c"]] * 2_000  # 6,000 bad numbers
-    r = client.post("/robots/tunnel_drill_arm/drill-ik", json={"holes": holes})
+    r = ro_client.post("/robots/tunnel_drill_arm/drill-ik", json={"holes": holes})
     assert r.status_code == 422
     detail = r.json()["detail"]
     assert len(detail) == MAX_ERRORS + 1
@@ -77,8 +77,8 @@ def test_a_422_lists_at_most_a_few_dozen_errors(client):
     assert len(r.content) < 10_000
 
 
-def test_each_route_has_a_body_cap_below_the_global_one(client):
-    doc = client.get("/openapi.json").json()
+def test_each_route_has_a_body_cap_below_the_global_one(ro_client):
+    doc = ro_client.get("/openapi.json").json()
     caps = {(path, method): op["x-max-body-bytes"] for path, ops in doc["paths"].items()
             for method, op in ops.items() if method in ("post", "put", "patch")}
     assert caps[("/robots/{robot_id}/ik", "post")] == ROUTE_BODY_CAPS[
@@ -89,17 +89,17 @@ def test_each_route_has_a_body_cap_below_the_global_one(client):
     assert all(cap <= 8 * 1024 * 1024 or path in big for (path, _), cap in caps.items())
     assert all(caps[(path, "post")] == ROUTE_BODY_CAPS[path] for path in big)
     # A single-pose call refuses 300 kB at once, from Content-Length alone.
-    r = client.post(f"{GLT}/jacobian", content=b" " * 300_000,
+    r = ro_client.post(f"{GLT}/jacobian", content=b" " * 300_000,
                     headers={"content-type": "application/json"})
     assert r.status_code == 413 and r.json()["detail"][0]["type"] == "too_large"
 
 
-def test_a_streamed_body_over_the_cap_is_413_not_400(client):
+def test_a_streamed_body_over_the_cap_is_413_not_400(ro_client):
     def chunks():
         for _ in range(40):
             yield b"0" * 10_000
 
-    r = client.post(f"{GLT}/jacobian", content=chunks(),
+    r = ro_client.post(f"{GLT}/jacobian", content=chunks(),
                     headers={"content-type": "application/json"})
     assert r.status_code == 413
     assert r.json()["detail"][0]["loc"] == ["body"]
@@ -114,14 +114,14 @@ def test_a_streamed_body_over_the_cap_is_413_not_400(client):
      ["body", "limits", "velocity"]),
     ({"waypoints": [[0.0]] * 1_001, "durations": [1.0] * 1_000}, ["body", "waypoints"]),
 ])
-def test_trajectory_numbers_are_bounded(client, body, loc):
-    r = client.post("/trajectories", json=body)
+def test_trajectory_numbers_are_bounded(ro_client, body, loc):
+    r = ro_client.post("/trajectories", json=body)
     assert r.status_code in (413, 422), r.text
     assert loc in _locs(r) or any(l[:len(loc)] == loc for l in _locs(r)), r.text
 
 
-def test_cartesian_duration_is_bounded(client):
-    r = client.post("/trajectories/cartesian", json={
+def test_cartesian_duration_is_bounded(ro_client):
+    r = ro_client.post("/trajectories/cartesian", json={
         "robot": "glt_palletizer", "path": {"kind": "line", "end": [500, 0, 500]},
         "duration": 1e308})
     assert r.status_code == 422 and ["body", "duration"] in _locs(r)
@@ -269,6 +269,7 @@ def test_a_body_that_stops_half_way_is_cut_off(live_server):
         assert 1.0 < _closed_after(s) < 4.0
 
 
+@pytest.mark.slow
 def test_a_steady_client_keeps_its_connection(live_server):
     import http.client
 
@@ -294,6 +295,7 @@ def _die() -> None:
     os._exit(7)
 
 
+@pytest.mark.slow
 def test_heavy_work_runs_in_another_process():
     pool = ComputePool(workers=1, max_waiting=4)
     try:
@@ -303,6 +305,7 @@ def test_heavy_work_runs_in_another_process():
         pool.shutdown()
 
 
+@pytest.mark.slow
 def test_too_many_waiting_is_busy_and_a_dead_worker_fails_alone():
     pool = ComputePool(workers=1, max_waiting=2)
 
@@ -321,6 +324,7 @@ def test_too_many_waiting_is_busy_and_a_dead_worker_fails_alone():
         pool.shutdown()
 
 
+@pytest.mark.slow
 def test_large_requests_go_to_the_pool_and_answer_the_same(tmp_path):
     api = _app(tmp_path)
     client = TestClient(api)
@@ -372,6 +376,7 @@ def _raise_method_unavailable() -> None:
     raise MethodUnavailableError("analytic", "no closed form for this robot")
 
 
+@pytest.mark.slow
 def test_errors_come_back_from_a_worker_without_breaking_it():
     from kinematics.errors import MethodUnavailableError
 
@@ -404,8 +409,8 @@ def test_shutdown_stops_a_busy_worker_at_once():
     assert time.monotonic() - start < 5.0
 
 
-def test_a_batch_ik_on_a_robot_without_a_closed_form_is_422(client):
+def test_a_batch_ik_on_a_robot_without_a_closed_form_is_422(ro_client):
     T = [[1, 0, 0, 500], [0, 1, 0, 0], [0, 0, 1, 300], [0, 0, 0, 1]]
-    r = client.post("/robots/tunnel_drill_arm/ik", json={"pose": [T] * 12,
+    r = ro_client.post("/robots/tunnel_drill_arm/ik", json={"pose": [T] * 12,
                                                         "method": "analytic"})
     assert r.status_code == 422 and _locs(r) == [["body", "method"]]

@@ -144,6 +144,7 @@ def test_bad_objects_are_named(apps, obj, loc, words):
     assert client.get("/scenes/bad").status_code == 404
 
 
+@pytest.mark.slow
 def test_bad_scene_bodies(apps):
     client = apps()
     r = client.post("/scenes", json={"objects": []})
@@ -228,6 +229,7 @@ def _wait(client: TestClient, job_id: str, timeout_s: float = 120.0) -> dict:
     raise AssertionError(f"job {job_id} did not end")
 
 
+@pytest.mark.slow
 def test_a_path_job_names_a_stored_scene(apps):
     client = apps()
     with client:

@@ -397,6 +397,7 @@ def _free_port() -> int:
     (lambda p: p.write_bytes(b"this is no database" * 500), "file is not a database"),
     (lambda p: p.mkdir(), "is a directory"),
 ])
+@pytest.mark.cluster
 def test_start_on_an_unusable_store_exits_with_one_line(tmp_path, make, words):
     make(tmp_path / STORE_FILENAME)
     proc = subprocess.run(

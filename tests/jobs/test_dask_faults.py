@@ -29,7 +29,8 @@ from app.main import create_app  # noqa: E402
 from .cluster import DASK, Cluster, cpu_by_process, descendants, hang_guard, wait_gone  # noqa: E402
 from .conftest import wait_for  # noqa: E402
 
-pytestmark = pytest.mark.skipif(not DASK.exists(), reason=f"no {DASK} command")
+pytestmark = [pytest.mark.cluster,
+              pytest.mark.skipif(not DASK.exists(), reason=f"no {DASK} command")]
 
 ROBOT = "glt_palletizer"
 FK = {"q": [0.1, -0.2, 0.3, 0.0, 0.4, -0.1]}

@@ -42,10 +42,12 @@ def submit(client, kind, **params):
     return r.json()["id"]
 
 
+@pytest.mark.cluster
 def test_health_names_the_backend(dask_client):
     assert dask_client.get("/health").json()["jobs_backend"].startswith("dask://")
 
 
+@pytest.mark.cluster
 def test_progress_and_result(dask_client):
     job_id = submit(dask_client, "sleep", seconds=2.0, steps=10)
     seen = []
@@ -57,6 +59,7 @@ def test_progress_and_result(dask_client):
     assert dask_client.get(f"/jobs/{job_id}/result").json()["slept"] == 2.0
 
 
+@pytest.mark.cluster
 def test_workspace_and_echo(dask_client):
     ws = submit(dask_client, "workspace", robot="glt_palletizer", samples=20000,
                 return_points=10)
@@ -67,6 +70,7 @@ def test_workspace_and_echo(dask_client):
     assert len(dask_client.get(f"/jobs/{ws}/result").json()["points"]) == 10
 
 
+@pytest.mark.cluster
 def test_failure_and_cancel(dask_client):
     bad = submit(dask_client, "sleep", seconds=0.1, outcome="raise")
     job = wait_for(dask_client, bad)
@@ -80,6 +84,7 @@ def test_failure_and_cancel(dask_client):
     assert time.monotonic() - t0 < 2.0
 
 
+@pytest.mark.cluster
 def test_time_limit(dask_client):
     r = dask_client.post("/jobs", json={"kind": "sleep", "params": {"seconds": 30, "steps": 300},
                                         "time_limit_s": 1})
@@ -101,6 +106,7 @@ def fresh_cluster():
         yield c
 
 
+@pytest.mark.cluster
 def test_one_job_spreads_over_both_workers(fresh_cluster, tmp_path, monkeypatch):
     """Also the first job of a cluster: its steps are not kept where its payload is."""
     from app.jobs.graph import run_inline
@@ -130,6 +136,7 @@ def test_one_job_spreads_over_both_workers(fresh_cluster, tmp_path, monkeypatch)
     assert result["total"] == inline.total
 
 
+@pytest.mark.slow
 def test_without_a_scheduler_jobs_answer_503_and_the_rest_works(tmp_path):
     import socket
 
@@ -154,6 +161,7 @@ def test_without_a_scheduler_jobs_answer_503_and_the_rest_works(tmp_path):
         assert client.get("/jobs").status_code == 200
 
 
+@pytest.mark.slow
 def test_a_job_waiting_for_a_lost_scheduler_is_cancelled_at_once(tmp_path):
     """A cancel while the cluster is away ends the job (nothing of it runs then), and its
     time limit still counts; neither waits for the scheduler."""
@@ -213,6 +221,7 @@ def test_a_step_stopped_by_a_lost_scheduler_is_handed_over_not_cancelled(tmp_pat
         "RuntimeError: boom"
 
 
+@pytest.mark.slow
 def test_a_job_claimed_while_the_store_fails_is_handed_over_later(tmp_path, monkeypatch):
     from pathlib import Path
 
@@ -240,6 +249,7 @@ def test_a_job_claimed_while_the_store_fails_is_handed_over_later(tmp_path, monk
     assert submitted == ["a"] and store.get_job("a").attempts == 1
 
 
+@pytest.mark.cluster
 def test_jobs_leave_no_queues_on_the_scheduler(cluster, tmp_path):
     """However many jobs and supervisor passes, the scheduler holds one message queue (the
     service's), released when the service stops."""

@@ -78,6 +78,7 @@ def test_bad_params_are_422_naming_the_field(client, kind, params, loc, words):
     assert words in err["msg"], err
 
 
+@pytest.mark.slow
 def test_sequence_job(client):
     out = run(client, "sequence", {"holes": FACE, "start": [9000, 0, -1000],
                                    "algorithm": "iga", "seed": 3,
@@ -94,6 +95,7 @@ def test_sequence_job(client):
     assert best["length"] <= out["length"] + 1e-6
 
 
+@pytest.mark.slow
 def test_multiarm_job(client):
     out = run(client, "multiarm", {"holes": SIDES, "planner": "iapf", "seed": 0,
                                    "output_dt": 1.0})

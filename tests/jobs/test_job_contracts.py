@@ -209,6 +209,7 @@ def _child_main_with_broken(conn, kind, payload, *step):
     _CHILD_MAIN(conn, kind, payload, *step)
 
 
+@pytest.mark.slow
 def test_a_job_whose_result_does_not_match_fails_saying_where(tmp_path, monkeypatch):
     monkeypatch.setitem(KINDS, "broken", BROKEN)
     monkeypatch.setattr(local, "_child_main", _child_main_with_broken)

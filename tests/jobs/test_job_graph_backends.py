@@ -69,6 +69,7 @@ def test_the_same_result_inline_and_on_the_backend(fan_client):
     assert [p["value"] for p in result["parts"]] == [p.value for p in inline.parts]
 
 
+@pytest.mark.slow
 def test_a_failing_part_fails_the_job_and_stops_the_others(fan_client):
     # Part 1 fails after 3 s; part 0 would go on for 27 s more.
     job_id = submit(fan_client, parts=2, part_s=30.0, fail=1)
@@ -110,6 +111,7 @@ def _alive(pid: int) -> bool:
         return False
 
 
+@pytest.mark.slow
 def test_an_older_jobs_ready_steps_go_first(fan_client):
     first = submit(fan_client, parts=4, part_s=0.6)
     second = submit(fan_client, parts=1, part_s=0.0)

@@ -267,6 +267,7 @@ def _compare_params(runs: int) -> dict:
             "params": {"ga": {"iterations": 5}, "aca": {"iterations": 3}}}
 
 
+@pytest.mark.slow
 def test_path_compare_parts_spread_give_the_rows_of_compare_planners():
     from app.jobs.path_kinds import compare_part_runs
     from planning.paths.compare import compare_planners
@@ -304,6 +305,7 @@ def _motion_params(n: int) -> dict:
             "problems": problems}
 
 
+@pytest.mark.slow
 @pytest.mark.usefixtures("motion_kernels")
 def test_motion_batch_parts_spread_give_the_one_checker_answer():
     """Problems planned in parts, a checker each, answer as one checker planning them all

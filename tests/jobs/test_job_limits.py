@@ -241,6 +241,7 @@ def test_params_over_the_size_cap_are_413_before_validation(client, monkeypatch)
     assert client.get("/jobs").json() == []
 
 
+@pytest.mark.slow
 def test_calibration_takes_more_params_than_other_kinds(client):
     """10,000 measured positions are about 2 MiB of JSON: within calibrate's own cap."""
     kinds = {k["kind"]: k for k in client.get("/jobs/kinds").json()}
@@ -302,6 +303,7 @@ def test_check_params_alone():
 
 
 # ---- time limit ------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_a_job_over_its_time_limit_fails_saying_so(tmp_path):
     settings = Settings(no_viewer=True, data_dir=tmp_path, workers=1)
     with TestClient(create_app(settings)) as client:
@@ -319,6 +321,7 @@ def test_a_job_over_its_time_limit_fails_saying_so(tmp_path):
         assert wait_for(client, echo)["status"] == "succeeded"
 
 
+@pytest.mark.slow
 def test_a_job_within_its_time_limit_succeeds(tmp_path):
     with TestClient(create_app(Settings(no_viewer=True, data_dir=tmp_path))) as client:
         r = post(client, "sleep", {"seconds": 0.3, "steps": 3}, time_limit_s=5)

@@ -122,6 +122,7 @@ def _meshed_arm_zip() -> bytes:
     return buf.getvalue()
 
 
+@pytest.mark.slow
 @pytest.mark.usefixtures("motion_kernels")
 def test_a_hundred_finished_motion_jobs_grow_the_store_by_their_records_only(
         tmp_path, capsys, monkeypatch):
@@ -343,6 +344,7 @@ def test_without_limits_nothing_is_pruned(tmp_path):
     assert jobs.maintain() == (0, 0) and jobs.store.count_jobs() == 5
 
 
+@pytest.mark.slow
 def test_the_service_prunes_periodically(tmp_path, monkeypatch):
     monkeypatch.setattr(manager_module, "MAINTENANCE_EVERY_S", 0.1)
     settings = Settings(no_viewer=True, data_dir=tmp_path, workers=1, job_retention_count=2)

@@ -223,6 +223,7 @@ def test_request_body_cap_is_413(tmp_path):
     assert r.status_code == 413 and r.json()["detail"][0]["type"] == "too_large"
 
 
+@pytest.mark.cluster
 def test_sigkill_and_restart_lose_nothing(tmp_path):
     """Kill -9 the whole service mid-job: finished results survive, the interrupted job is
     queued again at the next start and runs to the end (our documented choice)."""
@@ -252,6 +253,7 @@ def test_sigkill_and_restart_lose_nothing(tmp_path):
         svc.stop()
 
 
+@pytest.mark.cluster
 def test_hundred_jobs_from_ten_clients(tmp_path):
     svc = Service(tmp_path, "--workers", "2")
     ids: list[list[str]] = [[] for _ in range(10)]

@@ -54,6 +54,7 @@ def test_calibrate_params_are_checked(jobs_client):
     assert r.json()["detail"][0]["loc"][:3] == ["body", "params", "measurements"]
 
 
+@pytest.mark.slow
 def test_learned_ik_trains_then_answers(jobs_client, capsys):
     """Paper 002 section 3.1 on the tunnel drilling arm: 10,000 samples, 8,800 / 1,200."""
     r = jobs_client.post("/robots/tunnel_drill_arm/ik",
@@ -92,6 +93,7 @@ def test_learned_ik_trains_then_answers(jobs_client, capsys):
     assert res["position_error"] < 1e-4
 
 
+@pytest.mark.slow
 def test_learned_ik_on_the_glt_palletizer_fails_its_validation_with_defaults(jobs_client):
     """A free posture learns the orientation too, whose rotation columns obey quadratic
     identities; the map still fits (thin-plate spline), but it averages the arm's several

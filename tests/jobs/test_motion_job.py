@@ -222,6 +222,7 @@ def test_unknown_robot_and_scene_are_404(jobs_client):
     assert loc == ["body", "params", "scene"] and "nope" in msg
 
 
+@pytest.mark.slow
 def test_a_scene_too_big_for_a_job_is_413(jobs_client):
     c = jobs_client
     # Stored meshes filled in at submission take more than a motion job's params may.
@@ -279,6 +280,7 @@ def _meshed_glt_zip() -> bytes:
     return buf.getvalue()
 
 
+@pytest.mark.slow
 def test_an_imported_robot_plans_in_a_job_with_its_meshes(jobs_client):
     """The job carries the imported robot's description, collision model and collision
     meshes to its worker: the plan there is checked on the mesh, as the service's own."""

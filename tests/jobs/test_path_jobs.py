@@ -64,6 +64,7 @@ ARM_START = [1125.2917429, -1418.04563696, 267.5709755]
 ARM_GOAL = [1810.28587111, 0.0, 267.5709755]
 
 
+@pytest.mark.slow
 def test_path_jobs_through_the_api(client):
     """Four jobs at once (two workers): a path, an arm path, the paper's unreachable goal and
     a comparison. Each worker process pays the planning imports, so they share one test."""

@@ -82,6 +82,7 @@ def _check_motion(model, res, start, goal, scene=None, margin=0.0):
         assert not np.any(collides(cm, np.asarray(traj.q), scene, exact=True, margin=margin))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("robot", ["pile_driver", "glt_palletizer"])
 def test_random_moves_in_open_space_all_succeed(robot):
     """Ten moves between the tool points of random in-limit configurations: the tool path
@@ -215,6 +216,7 @@ def test_a_stored_scenes_own_objects_are_what_the_joint_space_motion_avoids():
                                                      if k != "id"}})
 
 
+@pytest.mark.slow
 def test_a_joint_space_path_job_through_the_api(jobs_client):
     """A stored scene with a mesh, a goal given as joint values: the job records the mesh
     inline and publishes the joint-space motion with its planner named."""

@@ -77,6 +77,7 @@ def _forkserver_children(service: int, n: int, timeout: float = 60.0) -> list[ps
         time.sleep(0.1)
 
 
+@pytest.mark.cluster
 def test_a_killed_service_leaves_no_process_behind(tmp_path):
     svc = Service(tmp_path, "--workers", "1")
     try:

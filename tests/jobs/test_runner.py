@@ -71,6 +71,7 @@ def test_a_stop_kills_the_child_at_once():
     assert _gone(pid) and not r.alive()
 
 
+@pytest.mark.slow
 def test_a_dead_child_is_reported():
     r = Runner()
     with pytest.raises(runner_module.RunnerDied, match="died"):
@@ -78,6 +79,7 @@ def test_a_dead_child_is_reported():
               True, lambda f, m: None, lambda: False)
 
 
+@pytest.mark.slow
 def test_the_child_dies_with_its_parent(tmp_path):
     """A worker killed with SIGKILL leaves no step running on its CPU."""
     pid_file = tmp_path / "pid"
@@ -107,6 +109,7 @@ def test_the_child_dies_with_its_parent(tmp_path):
             parent.kill()
 
 
+@pytest.mark.slow
 def test_the_pool_hands_out_prestarted_runners_and_takes_them_back():
     runner_module.prestart(1)
     r = runner_module.take_runner()

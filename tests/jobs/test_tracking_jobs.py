@@ -104,6 +104,7 @@ def _png_shape(content: bytes) -> tuple[int, ...]:
     return imread(io.BytesIO(content), format="png").shape
 
 
+@pytest.mark.slow
 def test_plot_of_a_tracking_job_even_after_its_robot_is_deleted(client):
     data = builtin_model("hyper_redundant_9dof").to_dict()
     data["id"] = "snake_copy"

@@ -431,6 +431,7 @@ def test_warm_up_compiles_every_variant_the_library_uses():
     assert after == before
 
 
+@pytest.mark.slow
 @needs_kernels
 def test_background_warm_up_serves_from_numpy_until_ready():
     code = ("import numpy as np\n"

@@ -170,6 +170,7 @@ def _reference_pose(model: RobotModel, q: np.ndarray) -> np.ndarray:
 BATCH = (2, 3)
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None, derandomize=True, database=None)
 @given(
     st.sampled_from(MODELS),

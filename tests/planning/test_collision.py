@@ -198,6 +198,7 @@ shape = st.tuples(st.integers(0, 3), st.floats(10, 200), st.floats(10, 200), st.
 vec = st.tuples(*[st.floats(-2.0, 2.0)] * 3)
 
 
+@pytest.mark.slow
 @settings(derandomize=True, database=None, max_examples=12, deadline=None)
 @given(shape, shape, vec, st.tuples(*[st.floats(-250, 250)] * 3))
 def test_spheres_free_means_exact_free(sa, sb, rot, shift):

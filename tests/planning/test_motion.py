@@ -181,6 +181,7 @@ def test_out_of_limits_names_the_joint(gantry):
     assert res.status is MotionStatus.OUT_OF_LIMITS and "the start" in res.message
 
 
+@pytest.mark.slow
 def test_pose_goals(arm):
     """Every IK branch of the pose is a goal: the path ends on one that reaches the pose;
     a pose out of reach is goal_unreachable."""

@@ -191,6 +191,7 @@ def test_palletizer_motions_are_verified(palletizer):
         _verified(model, cm, scene, p, res)
 
 
+@pytest.mark.slow
 def test_one_jumbo_arm_moves_round_the_others_parked(drill):
     """The jumbo's right arm between collaring poses with the left and middle arms standing
     in the tunnel: the parked arms are the capsules of their collision models."""

@@ -215,6 +215,7 @@ def test_planners_go_around_the_parked_middle_arm(blocked, planner):
     assert mv.traj.peaks(2)[0][:2].max() <= MotionLimits().acceleration[0] + 1e-9
 
 
+@pytest.mark.slow
 def test_the_papers_acceleration_bound_is_imposed_not_found(blocked):
     """Paper 002 reports joint accelerations below 0.25 rad/s^2. Ours stay below it only
     because the time scaling is given that limit: with the velocity limit alone the same
@@ -310,6 +311,7 @@ def test_small_face_plan_is_collision_free(rig, small_plan, capsys):
             + f"; tool path {fp.tool_path_m():.2f} m; middle parks: {fp.middle_park}")
 
 
+@pytest.mark.slow
 def test_rrt_face_plan_and_reproducibility(rig, small_plan):
     from planning.drilling.allocation import assign_holes
 

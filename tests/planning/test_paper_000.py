@@ -34,6 +34,8 @@ from scipy.stats import ranksums
 from planning.paths import plan_path
 from planning.paths.compare import toy_scene
 
+pytestmark = pytest.mark.paper
+
 START, GOAL = [1.0, 1.0, 1.0], [100.0, 100.0, 100.0]
 SEEDS = range(30)
 #: Iterations at 1/8 of the full run (see the module docstring).

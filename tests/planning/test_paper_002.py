@@ -70,6 +70,7 @@ def test_drilling_samples_obey_the_rule_and_the_limits():
     np.testing.assert_allclose(q[:, 6], 4022.0)
 
 
+@pytest.mark.paper
 def test_rbf_ik_on_the_papers_inputs_and_outputs(capsys):
     """Section 3.1: 10,000 samples, 8,800 / 1,200, RPY + xyz in, six joints out; paper:
     largest relative joint error 0.62 %, largest positioning error 2.94 mm. In the drilling
@@ -112,6 +113,7 @@ def paper_face_plan():
     return plan_face(rig, None, allocation=alloc, planner="iapf", seed=0)
 
 
+@pytest.mark.paper
 def test_paper_face_keeps_the_arms_apart(paper_face_plan, capsys):
     """Paper: least envelope distances 984.6 mm (middle-left) and 580.8 mm (middle-right).
     Those depend on its unprinted envelopes, layout and mounts; what we claim is a
@@ -125,6 +127,7 @@ def test_paper_face_keeps_the_arms_apart(paper_face_plan, capsys):
     assert min(d.values()) > IAPF().safety
 
 
+@pytest.mark.paper
 def test_paper_face_iapf_path_is_its_hole_order(paper_face_plan):
     """As in the paper's totals, the drill's path under IAPF is the hole order's length
     plus little: the transfers go nearly straight between holes."""

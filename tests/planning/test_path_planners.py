@@ -107,6 +107,7 @@ def test_seeded_runs_are_reproducible(algorithm):
     assert a.evaluations == b.evaluations
 
 
+@pytest.mark.slow
 def test_improved_wolf_pack_beats_the_basic_one():
     """Mean final fitness (penalised length of the best path, what paper 000 plots) over 3
     seeds and 2 layouts, light settings; the 30-seed comparison with Table 2's settings is
@@ -122,6 +123,7 @@ def test_improved_wolf_pack_beats_the_basic_one():
     assert np.mean(fitness["wolfpack_improved"]) < np.mean(fitness["wolfpack"])
 
 
+@pytest.mark.paper
 def test_improved_wolf_pack_with_paper_parameters():
     """Table 2's settings (its time goal is benchmarks/bench_speed_goals.py's)."""
     scene = toy_scene(0)
@@ -248,6 +250,7 @@ def tube_scene(n: int, seed: int = 11) -> Scene:
                          for c, r in zip(centres, radii)], 1.0)
 
 
+@pytest.mark.slow
 def test_many_spheres_plan_in_bounded_memory():
     """300 spheres with a small node budget (the 1,000-sphere case, sized down): the old
     visibility graph over every sample needed memory quadratic in the samples; now every
@@ -270,6 +273,7 @@ def test_many_spheres_plan_in_bounded_memory():
     assert straight < res.length < 1.01 * straight
 
 
+@pytest.mark.slow
 def test_many_spheres_are_reproducible():
     scene = tube_scene(120, seed=12)
     a = plan_path(scene, TUBE_START, TUBE_GOAL, "auto", seed=3)
@@ -277,6 +281,7 @@ def test_many_spheres_are_reproducible():
     np.testing.assert_array_equal(a.path, b.path)
 
 
+@pytest.mark.slow
 def test_sampling_fallback_when_the_node_budget_is_too_small():
     """16 graph nodes cannot get round the tube: the thinned rounds find nothing, and the
     RRT* fallback gives a verified path."""

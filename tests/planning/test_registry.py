@@ -122,7 +122,7 @@ def test_the_shared_path_knobs_default_as_plan_path_does():
             assert shared.waypoints == DEFAULT_WAYPOINTS.get(name, 5), name
 
 
-@pytest.mark.parametrize("name", ["auto", "rrt_star"])
+@pytest.mark.parametrize("name", ["auto", pytest.param("rrt_star", marks=pytest.mark.slow)])
 def test_the_planner_defaults_are_the_planners_own(name):
     """Giving the registry's defaults explicitly plans the very path the planner's own
     defaults plan (None: the planner derives it from the scene)."""
@@ -280,6 +280,7 @@ def test_a_registered_algorithm_gets_a_capped_model(tiny):
     assert make("path", "tiny", {"rounds": 2, "penalty": 5.0}) == Tiny(rounds=2)
 
 
+@pytest.mark.slow
 def test_registering_an_algorithm_is_all_the_api_needs(tmp_path):
     """A fresh service process with one more optimiser registered: jobs name it, its knob is
     capped (422 naming it above the cap) and its caps are published."""

@@ -292,6 +292,7 @@ def random_segments(seed: int, m: int) -> tuple[np.ndarray, np.ndarray]:
     return P0, P1
 
 
+@pytest.mark.slow
 @settings(derandomize=True, database=None, max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**31), n=st.integers(scene_module.BROAD_PHASE_MIN_OBSTACLES, 90),
        margin=st.floats(0.0, 1.5))

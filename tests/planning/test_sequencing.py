@@ -152,6 +152,7 @@ def test_paper_parameters_are_the_defaults():
     assert (b.population, b.crossover, b.mutation, b.iterations) == (50, 0.95, 0.05, 400)
 
 
+@pytest.mark.paper
 def test_iga_beats_aco_and_aga_on_a_40_hole_face(right_arm_face, capsys):
     """Paper: IGA 2.9-4.2 % shorter than ACO and about 7 % shorter than AGA (mean over
     seeds here; the benchmark runs 30 seeds)."""
@@ -170,6 +171,7 @@ def test_iga_beats_aco_and_aga_on_a_40_hole_face(right_arm_face, capsys):
     assert best <= mean["iga"] + 1e-6
 
 
+@pytest.mark.slow
 def test_auto_on_52_holes_matches_iga():
     """Its time goal (under 1 s of CPU) is benchmarks/bench_speed_goals.py's."""
     H = random_face(52, 7)

@@ -248,6 +248,7 @@ def middle_arm_face():
     return rig.arms["middle"], face.holes[alloc.indices["middle"]], park
 
 
+@pytest.mark.slow
 def test_time_order_saves_boom_time_on_a_face(middle_arm_face):
     model, H, park = middle_arm_face
     res = sequence_by_boom_time(model, H, q_start=park, seed=0)

@@ -53,6 +53,7 @@ def test_default_start_is_bent_and_inside_the_reach():
     assert np.linalg.svd(J[0], compute_uv=False)[-1] > 200.0  # mm/rad: far from singular
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["line", "ellipse"])
 def test_pi_hgso_short_run_tunes_eq_24(hgso_runs, kind):
     """The tuner's fitness is eq. 24 of its gains, and tuning beats both baselines: the
@@ -175,6 +176,7 @@ def test_population_fitness_is_eq_24_per_candidate():
         assert F[i] == pytest.approx(fk_error.mean(), rel=1e-9)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tuner", sorted(TUNERS))
 def test_tuning_is_reproducible_by_seed(tuner):
     task = LineTask(duration=5.0)

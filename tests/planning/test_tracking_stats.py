@@ -33,6 +33,7 @@ def fk_errors(gains) -> np.ndarray:
     return np.linalg.norm(sim.x_desired - fk(ARM, sim.q[0])[:, :3, 3], axis=1)
 
 
+@pytest.mark.slow
 def test_rows_hold_one_tuning_per_seed(table_and_progress):
     table, _ = table_and_progress
     assert table.task == "line" and [r.name for r in table.rows] == ["pso", "gwo"]

@@ -28,6 +28,8 @@ from web.viewer import Viewer
 sync_api = pytest.importorskip("playwright.sync_api",
                                reason="Playwright is in the 'test' extra: pip install -e '.[test]'")
 
+pytestmark = pytest.mark.browser
+
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync", "--disable-quic",

@@ -213,6 +213,7 @@ def test_collision_balls_toggle_and_follow_a_dh_robot(api):
     assert not v.gui.collision_info.visible
 
 
+@pytest.mark.slow
 def test_collision_balls_of_an_imported_robot_follow_its_links(api, meshed):
     v: Viewer = api.state.viewer
     v.select(ROBOT)

@@ -459,6 +459,7 @@ def _scene_pixels(page, path) -> np.ndarray:
     return pixels[:, : int(pixels.shape[1] * 0.6)]
 
 
+@pytest.mark.browser
 def test_a_motion_job_plays_in_the_browser(service, page, tmp_path):
     api, client = service
     viewer: Viewer = api.state.viewer
@@ -506,6 +507,7 @@ def test_a_motion_job_plays_in_the_browser(service, page, tmp_path):
     viewer.set_time(0.0)  # pauses
 
 
+@pytest.mark.browser
 def test_a_motion_answer_of_an_imported_robot_plays_in_the_browser(service, page, tmp_path,
                                                                   glt_meshed_zip):
     """``POST /robots/{id}/motion`` for a robot imported with meshes, shown with its stored

@@ -328,6 +328,7 @@ def test_concurrent_updates_from_many_threads_leave_a_consistent_scene(api):
     np.testing.assert_allclose(v.gui.slider_q(model), q, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_workspace_button_runs_a_job_and_shows_the_cloud(api):
     v = api.state.viewer
     with TestClient(api):  # the lifespan starts the job pool
