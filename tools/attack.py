@@ -58,7 +58,12 @@ Groups and targets:
    5e-324 and 1e-300 synchronously, 1e-12 in a ``motion`` job: 422 naming ``resolution``);
    ``fk-deep`` (``q`` nested 2,000 deep, objects nested 10,000 deep: 4xx);
    ``robot-four-bar`` (a pile driver whose four-bar cannot close, ``cylinders[2].l_mn`` 10,
-   1 and 0.001: 422 at that field, where it used to be stored and break trajectories).
+   1 and 0.001: 422 at that field, where it used to be stored and break trajectories);
+   ``finished-job-delete`` (a finished motion job deleted: 204, then 404 for it, its result
+   and a second DELETE; ``/health`` reports the store's size). Not here, because they need
+   the service's own process or a browser: a SIGKILL of the service leaving no process
+   behind (tests/jobs/test_process_lifetime.py) and request text shown as plain text in
+   the viewer (tests/web/test_viewer_text.py).
 
 Everything it creates (robots, jobs accepted where they should not be) is deleted or
 cancelled at once; every wait is bounded.
@@ -1124,6 +1129,31 @@ def robot_four_bar(ctx: Context) -> Outcome:
         elif l_mn == 10:
             notes.append(r.message()[:120])
     return Outcome(", ".join(parts), ok, "; ".join(notes))
+
+
+@attack("finished-job-delete", 8, "204, then 404; store size in /health")
+def finished_job_delete(ctx: Context) -> Outcome:
+    r = ctx.post("/jobs", dumps({"kind": "motion", "params": {
+        "robot": "glt_palletizer", **SWING, "time_limit": 2}}))
+    data = r.json() if isinstance(r.json(), dict) else {}
+    if r.status != 202 or "id" not in data:
+        return Outcome(f"submit {r.code}", False, r.message()[:90])
+    path = f"/jobs/{quote(str(data['id']), safe='')}"
+    t0 = time.perf_counter()
+    status = "queued"
+    while status in ("queued", "running") and time.perf_counter() - t0 < 120:
+        time.sleep(0.25)
+        got = ctx.get(path).json()
+        status = got.get("status", "?") if isinstance(got, dict) else "?"
+    gone = ctx.delete(path)
+    after = [ctx.get(path).code, ctx.get(f"{path}/result").code, ctx.delete(path).code]
+    health = ctx.get("/health").json()
+    store = health.get("store", {}) if isinstance(health, dict) else {}
+    ok = status == "succeeded" and gone.status == 204 and after == ["404"] * 3 \
+        and isinstance(store.get("bytes"), int)
+    note = f"job {status}; DELETE {gone.code}; then GET, result, DELETE: {', '.join(after)}; " \
+           f"store {store.get('bytes')} B, free {store.get('free_bytes')} B"
+    return Outcome(f"DELETE {gone.code}, then {'/'.join(after)}", ok, note)
 
 
 # ---- runner --------------------------------------------------------------------------------
