@@ -21,6 +21,7 @@ is ``T_flange_tool`` (frames, units and layouts: docs/conventions.md).
 
 from __future__ import annotations
 
+import copy
 import math
 import re
 from dataclasses import dataclass, field
@@ -199,7 +200,8 @@ class RobotModel:
         }
         if self.home is not None:
             out["home"] = self.home.tolist()
-        out.update(self.extras)
+        # A copy: the caller may edit the answer (built-in models are shared and cached).
+        out.update(copy.deepcopy(self.extras))
         return out
 
     @classmethod

@@ -114,3 +114,16 @@ def test_limit_helpers():
     assert model.limit_violations(q) == ["tilt"]
     with pytest.raises(ValueError):
         model.lower[0] = 0.0  # derived arrays are read-only
+
+
+def test_editing_a_models_dict_leaves_the_model_alone():
+    """to_dict's answer is the caller's: renaming a cylinder's joint in it once corrupted
+    the cached built-in pile driver for every later user in the process."""
+    from kinematics.library import builtin_model
+
+    data = builtin_model("pile_driver").to_dict()
+    data["cylinders"][0]["joint"] = "renamed"
+    data["joints"][1]["name"] = "renamed"
+    again = builtin_model("pile_driver").to_dict()
+    assert again["cylinders"][0]["joint"] != "renamed"
+    assert again["joints"][1]["name"] != "renamed"

@@ -95,3 +95,16 @@ def glt_collision_only_zip() -> bytes:
     """The same robot with collision meshes only (no ``<visual>``)."""
     pytest.importorskip("trimesh")
     return glt_archive(visual=False)
+
+
+@pytest.fixture
+def api(tmp_path):
+    """An application without processes started (jobs stay queued) and a viewer on port 0."""
+    from app.config import Settings
+    from app.main import create_app
+    from web.viewer import Viewer
+
+    app = create_app(Settings(no_viewer=True, data_dir=tmp_path, workers=1))
+    app.state.viewer = Viewer.start("127.0.0.1", 0, app.state, environment_map=False)
+    yield app
+    app.state.viewer.stop()

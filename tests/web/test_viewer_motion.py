@@ -98,14 +98,6 @@ def batch() -> tuple[dict, dict]:
                               {"start": START, "goal": {"pose": FAR}}]})
 
 
-@pytest.fixture
-def api(tmp_path):
-    """An application without processes started and a viewer on port 0."""
-    app = create_app(Settings(no_viewer=True, data_dir=tmp_path, workers=1))
-    app.state.viewer = Viewer.start("127.0.0.1", 0, app.state, environment_map=False)
-    yield app
-    app.state.viewer.stop()
-
 
 def _draw(params: dict, result: dict, **kw) -> Plan:
     return plan_from_result("motion", params, result, job="m", models=builtin_model, **kw)

@@ -17,8 +17,6 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from app.config import Settings
-from app.main import create_app
 from kinematics.cylinders import FourBarCylinder, cylinder_set
 from kinematics.fk import fk, fk_frames
 from kinematics.library import BUILTIN_IDS, builtin_model
@@ -33,7 +31,7 @@ from web.scene import (
     segment_pose,
 )
 from web.text import plain
-from web.viewer import JobNotReady, Viewer
+from web.viewer import JobNotReady
 
 RNG_SEED = 20240611
 
@@ -47,14 +45,6 @@ def server():
     yield s
     s.stop()
 
-
-@pytest.fixture
-def api(tmp_path):
-    """An application without processes started (jobs stay queued) and a viewer on port 0."""
-    app = create_app(Settings(no_viewer=True, data_dir=tmp_path, workers=1))
-    app.state.viewer = Viewer.start("127.0.0.1", 0, app.state, environment_map=False)
-    yield app
-    app.state.viewer.stop()
 
 
 def _wait(predicate, timeout: float = 30.0, step: float = 0.05):

@@ -17,8 +17,6 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from app.config import Settings
-from app.main import create_app
 from kinematics.library import builtin_model
 from web.text import code, plain
 from web.viewer import Viewer
@@ -45,14 +43,6 @@ HOSTILE = [
     "{alert(1)} \\ \\* trailing\\",
 ]
 
-
-@pytest.fixture
-def api(tmp_path):
-    """An application without processes started and a viewer on port 0."""
-    app = create_app(Settings(no_viewer=True, data_dir=tmp_path, workers=1))
-    app.state.viewer = Viewer.start("127.0.0.1", 0, app.state, environment_map=False)
-    yield app
-    app.state.viewer.stop()
 
 
 def read(markdown: str) -> tuple[str, str, str]:
