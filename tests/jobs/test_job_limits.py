@@ -315,7 +315,9 @@ def test_a_job_over_its_time_limit_fails_saying_so(tmp_path):
         job = wait_for(client, job_id, timeout=10)
         assert job["status"] == "failed", job
         assert job["error"] == "time limit of 1 s exceeded"
-        assert time.monotonic() - t0 < 3.0
+        # Within seconds of the limit, not the 30 s the job would sleep (a loaded machine
+        # took 3.7 s once).
+        assert time.monotonic() - t0 < 8.0
         # The worker is free again.
         echo = post(client, "echo", {"value": 1}).json()["id"]
         assert wait_for(client, echo)["status"] == "succeeded"
