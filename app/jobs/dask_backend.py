@@ -343,15 +343,29 @@ class DaskBackend(SupervisedBackend):
                                            pure=False)
         last = len(job.steps) - 1
         futures: list = []
+        # Steps dealt round the workers (a loose hint: any worker may still take one). On a
+        # fresh cluster the scheduler knows no step's duration and put the first steps on the
+        # worker holding the payload, one after the other, while the others stood idle.
+        workers = self._worker_addresses(client)
         for i, step in enumerate(job.steps):
             args = resolve(step.args, futures)
+            where = {"workers": [workers[i % len(workers)]], "allow_other_workers": True} \
+                if workers else {}
             futures.append(client.submit(
                 run_step, self._queue_name, key, i, job.kind, job.payload_future, step.fn,
                 args, i == last,
-                key=f"kinoplan-{_task_name(step)}-{key}-{i}", pure=False, retries=0))
+                key=f"kinoplan-{_task_name(step)}-{key}-{i}", pure=False, retries=0, **where))
         job.futures = futures
         job.tracker = Tracker(job.steps)
         job.starts = [0] * len(job.steps)
+
+    @staticmethod
+    def _worker_addresses(client: Any) -> list[str]:
+        """The cluster's workers as the client last heard of them (no round trip)."""
+        try:
+            return sorted(client.scheduler_info().get("workers", {}))
+        except Exception:  # noqa: BLE001 - no hint then: the scheduler places the steps
+            return []
 
     def _collect(self) -> None:
         try:

@@ -120,7 +120,9 @@ def test_one_job_spreads_over_both_workers(fresh_cluster, tmp_path, monkeypatch)
     settings = Settings(no_viewer=True, data_dir=tmp_path, jobs_backend=f"dask://{address}")
     with TestClient(create_app(settings)) as client:
         assert client.get("/health").json()["jobs"]["workers"] == 2
-        job_id = submit(client, graph_kinds.NAME, parts=4, part_s=1.0)
+        # Parts of 3 s: a worker's first step also starts its step runner (a Python process
+        # importing the kinds, 1-2 s on a loaded machine), which 1 s parts did not outlast.
+        job_id = submit(client, graph_kinds.NAME, parts=4, part_s=3.0)
         job = wait_for(client, job_id, timeout=60)
         assert job["status"] == "succeeded", job
         assert job["attempts"] == 1
