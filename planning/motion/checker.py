@@ -88,26 +88,22 @@ def segment_states(P: np.ndarray, steps, most: int | None = None) -> np.ndarray:
 
 def bisection_order(n: int) -> np.ndarray:
     """The interior states ``1 .. n - 1`` of a segment cut into ``n`` steps, in the order
-    of a breadth-first bisection (middle, then quarters, ...)."""
-    if n <= 1:
-        return np.empty(0, dtype=np.int64)
-    out = []
-    seen = np.zeros(n + 1, dtype=bool)
-    seen[0] = seen[n] = True
-    intervals = [(0, n)]
-    while intervals:
-        nxt = []
-        for a, b in intervals:
-            if b - a < 2:
-                continue
-            m = (a + b) // 2
-            if not seen[m]:
-                seen[m] = True
-                out.append(m)
-            nxt.append((a, m))
-            nxt.append((m, b))
-        intervals = nxt
-    return np.array(out, dtype=np.int64)
+    of a breadth-first bisection (middle, then quarters, ...). One numpy pass a level: the
+    midpoints of disjoint intervals are new states, so nothing is seen twice (a loop in
+    Python took 0.3 s for a segment at the finest resolution)."""
+    a = np.zeros(1, dtype=np.int64)
+    b = np.full(1, max(int(n), 0), dtype=np.int64)
+    levels = []
+    while True:
+        keep = b - a >= 2
+        a, b = a[keep], b[keep]
+        if not len(a):
+            break
+        m = (a + b) // 2
+        levels.append(m)
+        a = np.stack([a, m], axis=1).ravel()
+        b = np.stack([m, b], axis=1).ravel()
+    return np.concatenate(levels) if levels else np.empty(0, dtype=np.int64)
 
 
 class MotionChecker:

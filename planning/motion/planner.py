@@ -508,6 +508,8 @@ def _trajectory(checker: MotionChecker, path: np.ndarray, resolution: float, lim
         hydraulics = hydraulic_limits(rm)
     corners = len(path) > 2
     for dev in (BLEND_DEVIATIONS if corners else (0.0,)) + ((0.0,) if corners else ()):
+        if dev > 0.0 and checker.late():
+            continue   # no time left to check a blend: sharp corners, without timing each
         jp = smooth_polyline(path, dev)
         res = time_optimal(jp, limits, hydraulics)
         if not res.success:
