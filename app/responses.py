@@ -152,8 +152,6 @@ def loads_json(body: bytes | str) -> Any:
         raise _too_deep(body) from None
 
 
-_loads = loads_json
-
 
 class _Missing:
     """No body was sent."""
@@ -170,7 +168,7 @@ async def request_body(request: Request) -> tuple[bytes, Any]:
     if not raw:
         return raw, MISSING
     try:
-        return raw, _loads(raw)
+        return raw, loads_json(raw)
     except json.JSONDecodeError as exc:
         raise RequestValidationError([{
             "type": "json_invalid", "loc": ("body", exc.pos), "msg": "JSON decode error",
@@ -220,7 +218,7 @@ class FastJSONRequest(Request):
 
     async def json(self) -> Any:
         if not hasattr(self, "_json"):
-            self._json = _loads(await self.body())
+            self._json = loads_json(await self.body())
         return self._json
 
 
