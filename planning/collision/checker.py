@@ -35,6 +35,7 @@ import numpy as np
 
 from kinematics.errors import FieldError
 
+from .exact import exact_stage
 from .robot import RobotCollisionModel
 from .scene import CollisionScene, CompiledScene
 
@@ -304,7 +305,7 @@ def _collides_chunk(model, scene, cs, q2, self_collision, exact, margin) -> np.n
                           np.ones(len(b), dtype=bool)))
     if not exact or not hit.any():
         return hit
-    robot, world = _exact_parts(model, scene)
+    stage = exact_stage(model, scene)
     final = np.zeros(B, dtype=bool)
     bs = np.concatenate([f[0] for f in found])
     A = np.concatenate([f[1] for f in found])
@@ -316,8 +317,7 @@ def _collides_chunk(model, scene, cs, q2, self_collision, exact, margin) -> np.n
         bi = bs[i]
         if final[bi]:
             continue
-        final[bi] = _pair_collides(robot, world, M[bi], int(A[i]), int(C[i]), bool(S[i]),
-                                   margin)
+        final[bi] = stage.pair_collides(M[bi], int(A[i]), int(C[i]), bool(S[i]), margin)
     return final
 
 
@@ -375,7 +375,7 @@ def _check_chunk(model, scene, cs, q2, self_collision, exact, exact_distance, ma
     def label(a, c, is_self):
         return (names[a], names[c] if is_self else ids[c])
 
-    robot = world = None
+    stage = None
     for b in range(B):
         r = sorted(rec[b])
         dist[b] = r[0][0] if r else np.inf
@@ -385,11 +385,11 @@ def _check_chunk(model, scene, cs, q2, self_collision, exact, exact_distance, ma
         pairs[b] = [label(*x[1:]) for x in hits] if hits else [label(*r[0][1:])] if r else []
         if not (exact and hits) and not (exact_distance and not hits):
             continue
-        if robot is None:
-            robot, world = _exact_parts(model, scene)
+        if stage is None:
+            stage = exact_stage(model, scene)
         if hits:
-            confirmed = [x for x in hits if _pair_collides(robot, world, M[b], x[1], x[2],
-                                                            x[3], margin)]
+            confirmed = [x for x in hits if stage.pair_collides(M[b], x[1], x[2], x[3],
+                                                                margin)]
             collide[b] = bool(confirmed)
             if confirmed:
                 pairs[b] = [label(*x[1:]) for x in confirmed]
@@ -409,12 +409,10 @@ def _check_chunk(model, scene, cs, q2, self_collision, exact, exact_distance, ma
                                int(a), int(c), True))
         bounds.sort()
         best, where = np.inf, None
-        from .exact import pair_distance
-
         for lb, a, c, is_self in bounds:
             if lb >= best:
                 break
-            d = pair_distance(robot, world, M[b], a, c, is_self, reach=best)
+            d = stage.pair_distance(M[b], a, c, is_self, reach=best)
             if d < best:
                 best, where = d, (a, c, is_self)
         dist[b] = best
@@ -422,24 +420,3 @@ def _check_chunk(model, scene, cs, q2, self_collision, exact, exact_distance, ma
         pairs[b] = [label(*where)] if where is not None else []
     return pairs
 
-
-def _exact_parts(model: RobotCollisionModel, scene: CollisionScene | None):
-    from .exact import ExactRobot, ExactScene
-
-    robot = model.__dict__.get("_exact")
-    if robot is None:
-        robot = ExactRobot(model)
-        object.__setattr__(model, "_exact", robot)
-    world = None
-    if scene is not None:
-        world = scene._exact
-        if world is None:
-            world = ExactScene(scene)
-            scene._exact = world
-    return robot, world
-
-
-def _pair_collides(robot, world, M, a, c, is_self, margin) -> bool:
-    from .exact import pair_collides
-
-    return pair_collides(robot, world, M, a, c, is_self, margin)

@@ -3,9 +3,15 @@
 Used only for what the sphere stage flags (and for exact distances on request): a link's
 URDF shapes (triangle meshes as ``fcl.BVHModel``, boxes, cylinders, spheres) or a D-H
 link's capsule, against a scene object (boxes, spheres, cylinders, capsules, meshes) or
-another link. A point cloud is checked point by point with exact point-shape distances
-(``planning.collision.distance``): a point ``p`` of radius ``r`` hits a shape when its
-distance is at most ``r``.
+another link. A scene object's exact geometry is its shape's (``ShapeKind.exact`` in
+``planning.geometry.registry``). A point cloud is checked point by point with exact
+point-shape distances (the ``("point", shape)`` rows of the pair table): a point ``p`` of
+radius ``r`` hits a shape when its distance is at most ``r``.
+
+``exact_stage(model, scene)`` is the public entry: an ``ExactStage`` (built once per robot
+model and scene, then kept) whose ``pair_collides`` / ``pair_distance`` settle one flagged
+pair, and ``collide`` / ``distance`` two FCL objects; the compiled checker of
+``planning.motion`` uses it.
 
 Semantics, as FCL's: a mesh is its surface (triangles); a box, cylinder, sphere or capsule is
 solid. So an object wholly inside a link mesh without touching its triangles is not a
@@ -20,16 +26,18 @@ from typing import Any
 
 import numpy as np
 
-from .distance import (
+from ..geometry.distance import (
     box_distance,
     cylinder_distance,
-    frames_along,
     segment_distance,
+    segment_frame,
     sphere_distance,
     triangle_distance,
 )
+from ..geometry.table import shape_kind
 
-__all__ = ["ExactRobot", "ExactScene", "pair_collides", "pair_distance"]
+__all__ = ["ExactRobot", "ExactScene", "ExactStage", "exact_stage", "pair_collides",
+           "pair_distance", "fcl_collide", "fcl_distance"]
 
 
 def _fcl():
@@ -49,13 +57,6 @@ def _bvh(V: np.ndarray, F: np.ndarray):
     m.addSubModel(np.ascontiguousarray(V, dtype=float), np.ascontiguousarray(F, dtype=np.int64))
     m.endModel()
     return m
-
-
-def _frame_along(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """A pose at the midpoint of ``a``-``b`` whose z axis runs along it."""
-    T = frames_along(a, b - a)
-    T[:3, 3] = 0.5 * (a + b)
-    return T
 
 
 class _Shape:
@@ -89,7 +90,7 @@ class _Shape:
         return out
 
 
-def _shape_of_geometry(g: Any, meshes: Any, cache: dict) -> _Shape:
+def link_shape(g: Any, meshes: Any, cache: dict) -> _Shape:
     fcl = _fcl()
     T = np.asarray(g.origin, dtype=float)
     if g.kind == "box":
@@ -117,7 +118,7 @@ class ExactRobot:
             cache: dict = {}
             for k in model.link_index:
                 link = model.source.links[int(k)]
-                self.shapes.append([_shape_of_geometry(g, model.source.meshes, cache)
+                self.shapes.append([link_shape(g, model.source.meshes, cache)
                                     for g in link.collision])
 
     def link_shapes(self, k: int, M: np.ndarray) -> list[tuple[_Shape, np.ndarray]]:
@@ -132,7 +133,7 @@ class ExactRobot:
         fcl = _fcl()
         geom = fcl.Capsule(r, L) if L > 0 else fcl.Sphere(r)
         shape = _Shape("capsule" if L > 0 else "sphere", np.eye(4), geom, radius=r, height=L)
-        return [(shape, _frame_along(A, A + E))]
+        return [(shape, segment_frame(A, A + E))]
 
     def objects(self, k: int, M: np.ndarray) -> list[tuple[Any, _Shape, np.ndarray]]:
         """FCL collision objects of link ``k`` at state ``M``, with their shapes."""
@@ -146,34 +147,11 @@ class ExactScene:
     built once) and, for point clouds, the points and a k-d tree."""
 
     def __init__(self, scene: Any) -> None:
-        from scipy.spatial import cKDTree
-
-        fcl = _fcl()
-        self.items: list[Any] = []
-        for o in scene.objects:
-            T = np.asarray(o.pose, dtype=float)
-            if o.type == "points":
-                P = o.world_points()
-                self.items.append(("points", P, cKDTree(P), float(o.radius)))
-                continue
-            if o.type == "box":
-                geom, W = fcl.Box(*o.size), T
-            elif o.type == "sphere":
-                geom, W = fcl.Sphere(o.radius), T
-            elif o.type == "cylinder":
-                geom, W = fcl.Cylinder(o.radius, o.height), T
-            elif o.type == "capsule":
-                a = T[:3, :3] @ np.asarray(o.a) + T[:3, 3]
-                b = T[:3, :3] @ np.asarray(o.b) + T[:3, 3]
-                L = float(np.linalg.norm(b - a))
-                geom = fcl.Capsule(o.radius, L) if L > 0 else fcl.Sphere(o.radius)
-                W = _frame_along(a, b)
-            else:
-                geom, W = _bvh(o.vertices * np.asarray(o.scale), o.faces), T
-            self.items.append(("fcl", fcl.CollisionObject(geom, _transform(W))))
+        self.items: list[Any] = [shape_kind(o.type).exact(o) for o in scene.objects]
 
 
-def _collide(o1: Any, o2: Any, margin: float) -> bool:
+def fcl_collide(o1: Any, o2: Any, margin: float) -> bool:
+    """Whether two FCL objects touch (``margin`` 0) or come closer than ``margin`` mm."""
     fcl = _fcl()
     if margin <= 0:
         return bool(fcl.collide(o1, o2, fcl.CollisionRequest(), fcl.CollisionResult()))
@@ -181,7 +159,8 @@ def _collide(o1: Any, o2: Any, margin: float) -> bool:
     return d < margin
 
 
-def _distance(o1: Any, o2: Any) -> float:
+def fcl_distance(o1: Any, o2: Any) -> float:
+    """FCL's distance (mm) of two objects, 0 when they touch or overlap."""
     fcl = _fcl()
     d = fcl.distance(o1, o2, fcl.DistanceRequest(), fcl.DistanceResult())
     return 0.0 if d < 0 else float(d)
@@ -200,10 +179,10 @@ def pair_collides(robot: ExactRobot, scene: ExactScene | None, M: np.ndarray, a:
     A = robot.objects(a, M[a])
     if is_self:
         B = robot.objects(b, M[b])
-        return any(_collide(o1, o2, margin) for o1, _, _ in A for o2, _, _ in B)
+        return any(fcl_collide(o1, o2, margin) for o1, _, _ in A for o2, _, _ in B)
     item = scene.items[b]
     if item[0] == "fcl":
-        return any(_collide(o1, item[1], margin) for o1, _, _ in A)
+        return any(fcl_collide(o1, item[1], margin) for o1, _, _ in A)
     d = _points_distance(robot, item, a, M, max(margin, 0.0))
     return d < margin if margin > 0 else d <= 0
 
@@ -232,5 +211,54 @@ def pair_distance(robot: ExactRobot, scene: ExactScene | None, M: np.ndarray, a:
     A = robot.objects(a, M[a])
     if is_self:
         B = robot.objects(b, M[b])
-        return min(_distance(o1, o2) for o1, _, _ in A for o2, _, _ in B)
-    return min(_distance(o1, scene.items[b][1]) for o1, _, _ in A)
+        return min(fcl_distance(o1, o2) for o1, _, _ in A for o2, _, _ in B)
+    return min(fcl_distance(o1, scene.items[b][1]) for o1, _, _ in A)
+
+
+class ExactStage:
+    """The exact stage of one robot model in one scene (or none): the FCL shapes of the
+    links (``robot``, an ``ExactRobot``) and of the scene objects (``world``, an
+    ``ExactScene`` or None)."""
+
+    def __init__(self, robot: ExactRobot, world: ExactScene | None) -> None:
+        self.robot = robot
+        self.world = world
+
+    def pair_collides(self, M: np.ndarray, a: int, b: int, is_self: bool,
+                      margin: float = 0.0) -> bool:
+        """Whether link ``a`` touches scene object ``b`` (``is_self`` False) or link ``b``
+        (True), or comes closer than ``margin`` mm, at link states ``M (L, 3, w)``."""
+        return pair_collides(self.robot, self.world, M, a, b, is_self, margin)
+
+    def pair_distance(self, M: np.ndarray, a: int, b: int, is_self: bool,
+                      reach: float = math.inf) -> float:
+        """Exact distance (mm, 0 in contact) of link ``a`` and object or link ``b``."""
+        return pair_distance(self.robot, self.world, M, a, b, is_self, reach=reach)
+
+    def is_fcl(self, b: int) -> bool:
+        """Whether scene object ``b`` is one FCL object (``item(b)``), not a point cloud."""
+        return self.world.items[b][0] == "fcl"
+
+    def item(self, b: int) -> Any:
+        """The FCL object of scene object ``b`` (see ``is_fcl``)."""
+        return self.world.items[b][1]
+
+    collide = staticmethod(fcl_collide)
+    distance = staticmethod(fcl_distance)
+
+
+def exact_stage(model: Any, scene: Any = None) -> ExactStage:
+    """The exact stage of a ``RobotCollisionModel`` in a ``CollisionScene`` (or None): the
+    links' FCL shapes are built once per model and the objects' once per scene, then kept
+    on them."""
+    robot = model.__dict__.get("_exact")
+    if robot is None:
+        robot = ExactRobot(model)
+        object.__setattr__(model, "_exact", robot)
+    world = None
+    if scene is not None:
+        world = scene._exact
+        if world is None:
+            world = ExactScene(scene)
+            scene._exact = world
+    return ExactStage(robot, world)

@@ -1,7 +1,7 @@
 """MoveIt planning scenes to and from scene objects.
 
 ``scene_from_moveit(d)`` reads a ``moveit_msgs/PlanningScene`` as its YAML or JSON parses
-(metres) and returns object dicts in the API format (mm, ``planning.collision.shapes``):
+(metres) and returns object dicts in the API format (mm, ``planning.geometry.objects``):
 
 * every ``world.collision_objects[i]``: its ``pose`` (absent: identity) composed with each of
   its ``primitives[j]`` / ``primitive_poses[j]`` and ``meshes[j]`` / ``mesh_poses[j]``:
@@ -231,10 +231,9 @@ def scene_to_moveit(scene: Any, name: str = "") -> dict[str, Any]:
                 poses.append(_ros_pose(_at(p)))
             L = float(np.linalg.norm(b - a))
             if L > 0:
-                from .distance import frames_along
+                from ..geometry.distance import segment_frame
 
-                F = frames_along(a, b - a)
-                F[:3, 3] = 0.5 * (a + b)
+                F = segment_frame(a, b)
                 prims.append({"type": "cylinder",
                               "dimensions": [L / MM_PER_M, o.radius / MM_PER_M]})
                 poses.append(_ros_pose(F))
@@ -242,12 +241,16 @@ def scene_to_moveit(scene: Any, name: str = "") -> dict[str, Any]:
             for p in o.world_points():
                 prims.append({"type": "sphere", "dimensions": [o.radius / MM_PER_M]})
                 poses.append(_ros_pose(_at(p)))
-        else:
+        elif o.type == "mesh":
             V = o.vertices * np.asarray(o.scale) / MM_PER_M
             co["meshes"] = [{"vertices": V.tolist(),
                              "triangles": [{"vertex_indices": [int(i) for i in f]}
                                            for f in o.faces]}]
             co["mesh_poses"] = [_ros_pose(T)]
+        else:  # a registered shape with no MoveIt form: its bounding box, never smaller
+            lo, hi = o.kind.bounds(o)
+            prims.append({"type": "box", "dimensions": ((hi - lo) / MM_PER_M).tolist()})
+            poses.append(_ros_pose(_at(0.5 * (lo + hi))))
         if prims:
             co["primitives"] = prims
             co["primitive_poses"] = poses

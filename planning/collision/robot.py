@@ -6,7 +6,7 @@ Two kinds of robot:
 * **imported** (``RobotCollisionModel.from_imported``: a URDF robot, duck-typed as
   ``kinematics.urdf_import.ImportedRobot``): each link's collision geometry (meshes, boxes,
   cylinders, spheres) is covered by a three-level sphere tree in the link frame
-  (``planning.collision.spheres.cover_link``: ``n_groups`` groups of at most
+  (``planning.geometry.spheres.cover_link``: ``n_groups`` groups of at most
   ``spheres_per_group`` leaves); the exact geometry is the URDF's. Self-collision pairs: every
   pair of links with geometry except the adjacent ones and the SRDF's disabled ones.
 * **capsules** (``RobotCollisionModel.from_model``: built-in and custom D-H / PoE robots,
@@ -35,8 +35,8 @@ import numpy as np
 
 from kinematics.errors import FieldError
 
-from .distance import frames_along
-from .spheres import (
+from ..geometry.distance import frames_along
+from ..geometry.spheres import (
     SphereTree,
     box_solid,
     cover_link,
@@ -447,10 +447,10 @@ def _link_geometry(link: Any, meshes: Any) -> tuple[np.ndarray, list]:
 
 
 def _exact_shapes(robot: Any, k: int) -> list:
-    from .exact import _shape_of_geometry
+    from .exact import link_shape
 
     cache: dict = {}
-    return [_shape_of_geometry(g, robot.meshes, cache) for g in robot.links[k].collision]
+    return [link_shape(g, robot.meshes, cache) for g in robot.links[k].collision]
 
 
 def _shape_summary(g: Any, meshes: Any) -> dict[str, Any]:

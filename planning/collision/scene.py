@@ -1,9 +1,10 @@
-"""A collision scene: validated objects (``planning.collision.shapes``) and, built on first
-use, what the checker queries.
+"""A collision scene: validated objects (``planning.geometry.objects``) and, built on first
+use, what the checker queries. Every per-shape step is a lookup in the shape registry
+(``planning.geometry.registry``), so a registered shape takes part without changes here.
 
 * **Primitives** (boxes, spheres, cylinders, capsules) keep their exact signed distance
-  (``planning.collision.distance``).
-* **Meshes and point clouds** become ball sets (``planning.collision.spheres``): a mesh's
+  (their ``("point", shape)`` row of the pair table, ``planning.geometry.distance``).
+* **Meshes and point clouds** become ball sets (``planning.geometry.spheres``): a mesh's
   triangles clipped to cubes of ``mesh_resolution`` mm (one ball per occupied cube); a point
   cloud's points grouped in cubes of its ``resolution`` (one ball per cube, inflated by the
   points' ``radius``). The distance to a ball set is exact (a k-d tree's nearest balls,
@@ -14,7 +15,7 @@ use, what the checker queries.
   distance to the scene anywhere; the checker uses it to skip everything that is clearly far.
 
 The exact stage (``planning.collision.exact``) uses the objects themselves (every triangle,
-every point). Lengths in mm.
+every point: each shape's ``exact`` geometry). Lengths in mm.
 """
 
 from __future__ import annotations
@@ -28,24 +29,27 @@ import numpy as np
 
 from kinematics.errors import FieldError
 
-from .distance import box_distance, cylinder_distance, segment_distance, sphere_distance
-from .shapes import MeshResolver, SceneObject, check_caps, parse_objects
+from ..geometry.balls import BallSet
+from ..geometry.objects import MeshResolver, SceneObject, check_caps, parse_objects
+from ..geometry.table import pair_functions, shape_kind, shape_names
 
 __all__ = ["CollisionScene", "CompiledScene", "GRID_MAX_NODES", "GRID_CAP",
-           "MESH_RESOLUTION"]
+           "MESH_RESOLUTION", "OBJECT_TYPES"]
+
+#: The object types a scene accepts: the built-in shapes (``shape_names()`` of
+#: ``planning.geometry.registry`` lists the registered ones at any time).
+OBJECT_TYPES = shape_names()
 
 #: Most nodes of a scene's distance grid, and the largest distance (mm) it records.
 GRID_MAX_NODES = 1 << 19
 GRID_CAP = 600.0
 #: Default cube size (mm) the balls of a scene mesh are built on.
 MESH_RESOLUTION = 15.0
-#: Nearest balls of a ball set looked at first (widened until certain).
-_KNN = 8
 
 
 class CollisionScene:
     """A site's geometry for collision checking: ``objects`` (validated ``SceneObject``s,
-    see ``planning.collision.shapes``), and ``mesh_resolution`` (mm) of the balls that
+    see ``planning.geometry.objects``), and ``mesh_resolution`` (mm) of the balls that
     stand for meshes in the sphere stage.
 
     Build it from API object dicts (``from_dicts``), a request body with ``objects`` and/or
@@ -135,84 +139,34 @@ class CollisionScene:
         self._lock = threading.Lock()
 
 
-class _BallSet:
-    """Balls ``(M, 4)`` of one mesh or point cloud, with exact distances to them."""
-
-    def __init__(self, balls: np.ndarray) -> None:
-        from scipy.spatial import cKDTree
-
-        self.balls = balls
-        self.tree = cKDTree(balls[:, :3])
-        self.rmax = float(balls[:, 3].max())
-
-    def distance(self, P: np.ndarray, cap: float = math.inf) -> np.ndarray:
-        """Signed distance ``(K,)`` of points to the union of the balls: the nearest
-        centres, widened until no farther ball can be nearer. With ``cap``, a distance
-        above it may be answered as ``cap`` (only centres within ``cap + rmax`` are looked
-        at: what the distance grid, capped itself, needs)."""
-        n = len(self.balls)
-        k = min(_KNN, n)
-        out = np.empty(len(P))
-        todo = np.arange(len(P))
-        bound = cap + self.rmax
-        while len(todo):
-            d, i = self.tree.query(P[todo], k=k, distance_upper_bound=bound)
-            d, i = d.reshape(len(todo), k), i.reshape(len(todo), k)
-            found = np.isfinite(d)
-            r = self.balls[np.where(found, i, 0), 3]
-            best = np.where(found, d - r, np.inf).min(axis=1)
-            best = np.minimum(best, cap)
-            last = np.where(found[:, -1], d[:, -1], bound)
-            sure = (k >= n) | ~found[:, -1] | (last - self.rmax >= best)
-            out[todo[sure]] = best[sure]
-            todo = todo[~sure]
-            k = min(4 * k, n)
-        return out
-
-
 class CompiledScene:
     """What the checker queries (see the module docstring): ``object_distance`` (per object,
     exact for the sphere stage) and ``lower_bound`` (the grid)."""
 
     def __init__(self, objects: tuple[SceneObject, ...], mesh_resolution: float) -> None:
-        from .spheres import cover_points, cover_triangles
-
         self.n = len(objects)
+        self.objects = objects
         self.ids = tuple(o.id for o in objects)
-        kinds: dict[str, list[int]] = {"box": [], "sphere": [], "cylinder": [], "capsule": []}
-        self.sets: list[tuple[int, _BallSet]] = []
+        #: ``(shape name, object indices, packed arrays)`` of the primitives, one per shape
+        #: (their ``("point", shape)`` twin measures them all at once).
+        self.groups: list[tuple[str, np.ndarray, tuple]] = []
+        self.sets: list[tuple[int, BallSet]] = []
+        members: dict[str, list[int]] = {}
         for i, o in enumerate(objects):
-            if o.type in kinds:
-                kinds[o.type].append(i)
-            elif o.type == "mesh":
-                V = o.world_vertices()
-                balls = cover_triangles(V[o.faces], mesh_resolution)
-                self.sets.append((i, _BallSet(balls)))
+            kind = shape_kind(o.type)
+            if kind.balls is not None:
+                self.sets.append((i, BallSet(kind.balls(o, mesh_resolution))))
             else:
-                balls = cover_points(o.world_points(), o.radius, o.resolution)
-                self.sets.append((i, _BallSet(balls)))
-        obj = [objects[i] for i in kinds["box"]]
-        self.box_obj = np.array(kinds["box"], dtype=np.intp)
-        self.box_T = np.array([o.pose for o in obj]).reshape(-1, 4, 4)
-        self.box_size = np.array([o.size for o in obj], dtype=float).reshape(-1, 3)
-        obj = [objects[i] for i in kinds["cylinder"]]
-        self.cyl_obj = np.array(kinds["cylinder"], dtype=np.intp)
-        self.cyl_T = np.array([o.pose for o in obj]).reshape(-1, 4, 4)
-        self.cyl_r = np.array([o.radius for o in obj], dtype=float)
-        self.cyl_h = np.array([o.height for o in obj], dtype=float)
-        obj = [objects[i] for i in kinds["sphere"]]
-        self.sph_obj = np.array(kinds["sphere"], dtype=np.intp)
-        self.sph_c = np.array([o.pose[:3, 3] for o in obj]).reshape(-1, 3)
-        self.sph_r = np.array([o.radius for o in obj], dtype=float)
-        obj = [objects[i] for i in kinds["capsule"]]
-        self.cap_obj = np.array(kinds["capsule"], dtype=np.intp)
-        self.cap_A = np.array([o.pose[:3, :3] @ o.a + o.pose[:3, 3] for o in obj]).reshape(-1, 3)
-        self.cap_B = np.array([o.pose[:3, :3] @ o.b + o.pose[:3, 3] for o in obj]).reshape(-1, 3)
-        self.cap_r = np.array([o.radius for o in obj], dtype=float)
-        self.bounds = [_bounds(o) for o in objects]
-        for i, s in self.sets:
-            self.bounds[i] = ((s.balls[:, :3] - s.balls[:, 3:]).min(0),
-                              (s.balls[:, :3] + s.balls[:, 3:]).max(0))
+                members.setdefault(o.type, []).append(i)
+        for name, idx in members.items():
+            packed = shape_kind(name).pack([objects[i] for i in idx])
+            self.groups.append((name, np.array(idx, dtype=np.intp), packed))
+        self.bounds = [None] * self.n
+        for name, idx, _ in self.groups:
+            for i in idx:
+                self.bounds[i] = shape_kind(name).bounds(objects[i])
+        for i, bs in self.sets:
+            self.bounds[i] = bs.bounds()
         self.lo = np.min([a for a, _ in self.bounds], axis=0) if self.n else np.zeros(3)
         self.hi = np.max([b for _, b in self.bounds], axis=0) if self.n else np.zeros(3)
         self._grid: Any = False
@@ -230,14 +184,8 @@ class CompiledScene:
         """Signed distance ``(K, n)`` of points ``P (K, 3)`` to every object: exact for
         primitives, to the ball set for meshes and point clouds."""
         out = np.empty((len(P), self.n))
-        if len(self.box_obj):
-            out[:, self.box_obj] = box_distance(P, self.box_T, self.box_size)
-        if len(self.cyl_obj):
-            out[:, self.cyl_obj] = cylinder_distance(P, self.cyl_T, self.cyl_r, self.cyl_h)
-        if len(self.sph_obj):
-            out[:, self.sph_obj] = sphere_distance(P, self.sph_c, self.sph_r)
-        if len(self.cap_obj):
-            out[:, self.cap_obj] = segment_distance(P, self.cap_A, self.cap_B) - self.cap_r
+        for name, idx, packed in self.groups:
+            out[:, idx] = pair_functions("point", name).twin(P, *packed)
         for i, s in self.sets:
             out[:, i] = s.distance(P)
         return out
@@ -270,17 +218,12 @@ class CompiledScene:
 
     def _one(self, P: np.ndarray, i: int) -> np.ndarray:
         """Signed distance ``(K,)`` of points to object ``i``."""
-        for obj, f in ((self.box_obj, lambda k: box_distance(P, self.box_T[k:k + 1],
-                                                             self.box_size[k:k + 1])),
-                       (self.cyl_obj, lambda k: cylinder_distance(
-                           P, self.cyl_T[k:k + 1], self.cyl_r[k:k + 1], self.cyl_h[k:k + 1])),
-                       (self.sph_obj, lambda k: sphere_distance(P, self.sph_c[k:k + 1],
-                                                                self.sph_r[k:k + 1])),
-                       (self.cap_obj, lambda k: segment_distance(
-                           P, self.cap_A[k:k + 1], self.cap_B[k:k + 1]) - self.cap_r[k])):
-            hit = np.flatnonzero(obj == i)
+        for name, idx, packed in self.groups:
+            hit = np.flatnonzero(idx == i)
             if len(hit):
-                return f(int(hit[0]))[:, 0]
+                k = int(hit[0])
+                one = tuple(a[k:k + 1] for a in packed)
+                return pair_functions("point", name).twin(P, *one)[:, 0]
         for j, s in self.sets:
             if j == i:
                 return s.distance(P, cap=GRID_CAP)
@@ -303,21 +246,3 @@ class CompiledScene:
         gap = np.sqrt(np.square(np.maximum(np.maximum(self.lo - P, P - self.hi), 0.0)).sum(1))
         return np.where(gap > 0, np.maximum(lb, gap), lb).reshape(shape_in)
 
-
-def _bounds(o: SceneObject) -> tuple[np.ndarray, np.ndarray]:
-    """Axis-aligned bounds of a primitive (meshes and clouds: their balls, added apart)."""
-    T = o.pose
-    if o.type == "box":
-        half = np.abs(T[:3, :3]) @ (0.5 * np.asarray(o.size))
-        return T[:3, 3] - half, T[:3, 3] + half
-    if o.type == "sphere":
-        return T[:3, 3] - o.radius, T[:3, 3] + o.radius
-    if o.type == "cylinder":
-        z = T[:3, 2]
-        half = 0.5 * o.height * np.abs(z) + o.radius * np.sqrt(np.maximum(1 - z * z, 0.0))
-        return T[:3, 3] - half, T[:3, 3] + half
-    if o.type == "capsule":
-        a = T[:3, :3] @ o.a + T[:3, 3]
-        b = T[:3, :3] @ o.b + T[:3, 3]
-        return np.minimum(a, b) - o.radius, np.maximum(a, b) + o.radius
-    return np.full(3, np.inf), np.full(3, -np.inf)

@@ -21,7 +21,8 @@ section and a feed beam with its rock drill (about 0.4 m across), and every func
 other radii. Frames 3 and 4 coincide (a3 = d4 = 0), so there is no separate roll link.
 
 Distances are signed surface distances in mm: the segment-segment distance (Ericson's
-closed form, ``planning.paths.scene.segment_segment_distance``) minus both radii; negative
+closed form, ``planning.geometry.segments.segment_segment_distance``, the
+``("segment", "capsule")`` row of the geometry's pair table) minus both radii; negative
 means the envelopes overlap. Batched: configurations lead, ``(S, ...)``.
 """
 
@@ -36,7 +37,7 @@ from kinematics.errors import FieldError
 from kinematics.fk import fk_frames
 from kinematics.model import RobotModel
 
-from ..paths.scene import segment_segment_distance
+from ..geometry.segments import segment_segment_distance
 
 __all__ = [
     "DRILL_ARM_LINKS",

@@ -18,12 +18,14 @@ Arrays (all C-contiguous float64 unless said):
   of frame ``ends[l] + 1``; ``imported`` models (``w == 4``): link ``l`` is frame ``l``;
 * trees ``root (L, w)``, ``root_r (L,)``, ``group (L, G, w)``, ``group_r (L, G)``,
   ``leaf (L, G, m, w)``, ``leaf_r (L, G, m)``;
-* scene: primitives ``kind (n_o,)`` int (0 box, 1 cylinder, 2 sphere, 3 capsule, 4 ball set),
-  ``T_inv (n_o, 3, 4)`` (world to object), ``par (n_o, 4)`` (box half sides; cylinder radius,
-  half height; sphere radius; capsule radius and half length along local z; ball set: index of
-  its ball grid), ``aabb (n_o, 6)``; the scene's distance grid ``grid (nx*ny*nz,)`` with
-  ``grid_meta (7,)`` = lo xyz, h, shape xyz (``h == 0``: no grid, objects are tested one by
-  one), and the scene bounds ``scene_box (6,)``; ball
+* scene: objects ``kind (n_o,)`` int (their shapes' codes, ``KERNEL_CODES`` of
+  ``planning.geometry.registry``), ``T_inv (n_o, 3, 4)`` (world to object), ``par (n_o, 4)``
+  (the shapes' ``kernel_params``; ball set: index of its ball grid), ``aabb (n_o, 6)``, as
+  ``planning.geometry.compiled.kernel_objects`` lays them out; the distances themselves are
+  ``planning.geometry.kernels``' (the one switch over the shape codes); the scene's
+  distance grid ``grid (nx*ny*nz,)`` with ``grid_meta (7,)`` = lo xyz, h, shape xyz
+  (``h == 0``: no grid, objects are tested one by one), and the scene bounds
+  ``scene_box (6,)``; ball
   sets ``balls (N, 4)`` sorted by cell, ``cells (n_cells + 1,)`` int starts and per set
   ``set_meta (S, 9)`` = lo xyz, h, shape xyz, first cell, largest radius;
 * self pairs ``pairs (P, 2)`` int (the sphere-checked ones), and the pair tables
@@ -40,6 +42,7 @@ import numpy as np
 from numba import njit
 
 from kinematics._kernels import _move, _times
+from planning.geometry.kernels import object_distance, object_within
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
 
@@ -133,51 +136,6 @@ def _grid_bound(p, grid, meta, box):
 
 
 @njit(**_JIT)
-def _cells_around(p, ext, s, set_meta):
-    """The cell ranges of ball set ``s`` within ``ext`` of ``p`` (each axis clipped to the
-    grid), its first cell and the strides."""
-    h = set_meta[s, 3]
-    sx = int(set_meta[s, 4])
-    sy = int(set_meta[s, 5])
-    sz = int(set_meta[s, 6])
-    i0 = max(int(math.floor((p[0] - ext - set_meta[s, 0]) / h)), 0)
-    i1 = min(int(math.floor((p[0] + ext - set_meta[s, 0]) / h)), sx - 1)
-    j0 = max(int(math.floor((p[1] - ext - set_meta[s, 1]) / h)), 0)
-    j1 = min(int(math.floor((p[1] + ext - set_meta[s, 1]) / h)), sy - 1)
-    k0 = max(int(math.floor((p[2] - ext - set_meta[s, 2]) / h)), 0)
-    k1 = min(int(math.floor((p[2] + ext - set_meta[s, 2]) / h)), sz - 1)
-    return i0, i1, j0, j1, k0, k1, int(set_meta[s, 7]), sy, sz
-
-
-@njit(**_JIT)
-def _ballset_within(p, reach, s, balls, cells, set_meta):
-    """Whether a ball of set ``s`` comes within ``reach`` of ``p`` (surface distance)."""
-    i0, i1, j0, j1, k0, k1, first, sy, sz = _cells_around(p, reach + set_meta[s, 8], s,
-                                                          set_meta)
-    for i in range(i0, i1 + 1):
-        for j in range(j0, j1 + 1):
-            for k in range(k0, k1 + 1):
-                cell = first + (i * sy + j) * sz + k
-                for b in range(cells[cell], cells[cell + 1]):
-                    dx = p[0] - balls[b, 0]
-                    dy = p[1] - balls[b, 1]
-                    dz = p[2] - balls[b, 2]
-                    lim = reach + balls[b, 3]
-                    if dx * dx + dy * dy + dz * dz <= lim * lim:
-                        return True
-    return False
-
-
-@njit(**_JIT)
-def _object_within(p, reach, o, kind, T_inv, par, balls, cells, set_meta):
-    """Whether the point ``p`` is within ``reach`` (>= 0) of object ``o`` (a ball set
-    stops at the first ball near enough)."""
-    if kind[o] == 4:
-        return _ballset_within(p, reach, int(par[o, 0]), balls, cells, set_meta)
-    return _object_distance(p, reach, o, kind, T_inv, par, balls, cells, set_meta) <= reach
-
-
-@njit(**_JIT)
 def _near_scene(p, reach, o, aabb):
     return (aabb[o, 0] - reach <= p[0] <= aabb[o, 3] + reach
             and aabb[o, 1] - reach <= p[1] <= aabb[o, 4] + reach
@@ -245,7 +203,7 @@ def _within_any(p, reach, kind, T_inv, par, aabb, grid, grid_meta, scene_box, ba
     n = 0
     for i in range(n_among):
         o = among[i]
-        if _near_scene(p, reach, o, aabb) and _object_within(p, reach, o, kind, T_inv, par,
+        if _near_scene(p, reach, o, aabb) and object_within(p, reach, o, kind, T_inv, par,
                                                              balls, cells, set_meta):
             out[n] = o
             n += 1
@@ -359,7 +317,7 @@ def check_state(M, margin, root, root_r, group, group_r, leaf, leaf_r, has_scene
                     reach = leaf_r[l, g, j] + margin
                     for i in range(ng):
                         o = near_g[i]
-                        if _object_within(Wl[l, g, j], reach, o, kind, T_inv, par, balls,
+                        if object_within(Wl[l, g, j], reach, o, kind, T_inv, par, balls,
                                           cells, set_meta):
                             if cap == 0:
                                 return 1
@@ -480,56 +438,6 @@ def segment_first(C, prismatic, offset, body, X, ends, w, a, b, n, order, start,
 
 # ---- clearance ------------------------------------------------------------------------------
 @njit(**_JIT)
-def _ballset_distance(p, reach, s, balls, cells, set_meta):
-    """Signed distance from ``p`` to the balls of set ``s``, or ``reach`` when none comes
-    within it (a lower bound then)."""
-    i0, i1, j0, j1, k0, k1, first, sy, sz = _cells_around(p, reach + set_meta[s, 8], s,
-                                                          set_meta)
-    best = reach
-    for i in range(i0, i1 + 1):
-        for j in range(j0, j1 + 1):
-            for k in range(k0, k1 + 1):
-                cell = first + (i * sy + j) * sz + k
-                for b in range(cells[cell], cells[cell + 1]):
-                    dx = p[0] - balls[b, 0]
-                    dy = p[1] - balls[b, 1]
-                    dz = p[2] - balls[b, 2]
-                    d = math.sqrt(dx * dx + dy * dy + dz * dz) - balls[b, 3]
-                    if d < best:
-                        best = d
-    return best
-
-
-@njit(**_JIT)
-def _object_distance(p, reach, o, kind, T_inv, par, balls, cells, set_meta):
-    """Signed distance from ``p`` to object ``o`` (ball sets: at most ``reach``)."""
-    k = kind[o]
-    if k == 4:
-        return _ballset_distance(p, reach, int(par[o, 0]), balls, cells, set_meta)
-    x = T_inv[o, 0, 0] * p[0] + T_inv[o, 0, 1] * p[1] + T_inv[o, 0, 2] * p[2] + T_inv[o, 0, 3]
-    y = T_inv[o, 1, 0] * p[0] + T_inv[o, 1, 1] * p[1] + T_inv[o, 1, 2] * p[2] + T_inv[o, 1, 3]
-    z = T_inv[o, 2, 0] * p[0] + T_inv[o, 2, 1] * p[1] + T_inv[o, 2, 2] * p[2] + T_inv[o, 2, 3]
-    if k == 0:
-        qx = abs(x) - par[o, 0]
-        qy = abs(y) - par[o, 1]
-        qz = abs(z) - par[o, 2]
-        ox = max(qx, 0.0)
-        oy = max(qy, 0.0)
-        oz = max(qz, 0.0)
-        return math.sqrt(ox * ox + oy * oy + oz * oz) + min(max(qx, max(qy, qz)), 0.0)
-    if k == 1:
-        dr = math.sqrt(x * x + y * y) - par[o, 0]
-        dz = abs(z) - par[o, 1]
-        a = max(dr, 0.0)
-        b = max(dz, 0.0)
-        return math.sqrt(a * a + b * b) + min(max(dr, dz), 0.0)
-    if k == 2:
-        return math.sqrt(x * x + y * y + z * z) - par[o, 0]
-    zz = min(max(z, -par[o, 1]), par[o, 1])
-    return math.sqrt(x * x + y * y + (z - zz) * (z - zz)) - par[o, 0]
-
-
-@njit(**_JIT)
 def state_bounds(C, prismatic, offset, body, X, ends, w, q, reach, root, root_r, group,
                  group_r, leaf, leaf_r, has_scene, kind, T_inv, par, aabb, grid, grid_meta,
                  scene_box, balls, cells, set_meta, pairs, tab_i, tab_f, tab_values,
@@ -558,16 +466,16 @@ def state_bounds(C, prismatic, offset, body, X, ends, w, q, reach, root, root_r,
     for l in range(L):
         for o in range(n_o):
             best = reach
-            if has_scene and _object_distance(Wr[l], reach + root_r[l], o, kind, T_inv, par,
+            if has_scene and object_distance(Wr[l], reach + root_r[l], o, kind, T_inv, par,
                                               balls, cells, set_meta) - root_r[l] < best:
                 for g in range(G):
                     rg = group_r[l, g]
-                    if _object_distance(Wg[l, g], best + rg, o, kind, T_inv, par, balls, cells,
+                    if object_distance(Wg[l, g], best + rg, o, kind, T_inv, par, balls, cells,
                                         set_meta) - rg >= best:
                         continue
                     for j in range(m):
                         r = leaf_r[l, g, j]
-                        d = _object_distance(Wl[l, g, j], best + r, o, kind, T_inv, par,
+                        d = object_distance(Wl[l, g, j], best + r, o, kind, T_inv, par,
                                              balls, cells, set_meta) - r
                         if d < best:
                             best = d

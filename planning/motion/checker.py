@@ -20,9 +20,10 @@ search never runs far past its time limit however fine the ``resolution``; "not 
 every planner conservative (nothing unchecked is ever kept). The planner sets it and clears
 it; the verification helpers (``path_free`` outside a plan, ``clearance``) run without one.
 
-Without numba (``KINOPLAN_JIT=0``), or for a robot whose links the chain layout cannot carry
-(a link moved by a mimic joint), the checks run on ``planning.collision.collides`` instead:
-the same answers, slower.
+Without numba (``KINOPLAN_JIT=0``), for a robot whose links the chain layout cannot carry
+(a link moved by a mimic joint), or in a scene with a shape that has no compiled kernel (a
+registered shape without a code, ``planning.geometry.registry``), the checks run on
+``planning.collision.collides`` instead: the same answers, slower.
 """
 
 from __future__ import annotations
@@ -57,8 +58,6 @@ _ORDER_CACHE_SIZE = 4096
 _HIT_CAP = 256
 #: Scenes with more objects than this are screened by their distance grid.
 GRID_OBJECTS = 24
-#: Largest number of cells of one ball set's grid.
-_SET_CELLS = 1 << 18
 
 
 def segment_states(P: np.ndarray, steps, most: int | None = None) -> np.ndarray:
@@ -159,6 +158,8 @@ class MotionChecker:
                 self._k = None
             else:
                 self._scene = _scene_arrays(self.scene)
+                if self._scene is None:
+                    self._k = None
         self._q = np.empty(self.dof)
         self._fcl: _FastExact | None = None
 
@@ -221,19 +222,19 @@ class MotionChecker:
 
             return not bool(collides(self.cm, q, self.scene, self.self_collision, exact=True,
                                      margin=self.margin))
-        from planning.collision.checker import _exact_parts, _pair_collides
+        from planning.collision import exact_stage
 
-        robot, world = _exact_parts(self.cm, self.scene)
+        stage = exact_stage(self.cm, self.scene)
         if self._fcl is None:
-            self._fcl = _FastExact(robot, world, self.cm.kind == "imported")
+            self._fcl = _FastExact(stage, self.cm.kind == "imported")
         fast = self._fcl
         posed: dict[int, list] = {}
         for a, c, is_self in hits[:n]:
             a, c = int(a), int(c)
-            if fast.ok and (is_self or world.items[c][0] == "fcl"):
+            if fast.ok and (is_self or stage.is_fcl(c)):
                 if fast.collides(M, a, c, bool(is_self), posed, self.margin):
                     return False
-            elif _pair_collides(robot, world, M, a, c, bool(is_self), self.margin):
+            elif stage.pair_collides(M, a, c, bool(is_self), self.margin):
                 return False
         return True
 
@@ -366,36 +367,32 @@ class MotionChecker:
 
     def _exact_distance(self, M: np.ndarray, a: int, c: int, is_self: bool,
                         reach: float) -> float:
-        from planning.collision.checker import _exact_parts
-        from planning.collision.exact import pair_distance
+        from planning.collision import exact_stage
 
-        robot, world = _exact_parts(self.cm, self.scene)
+        stage = exact_stage(self.cm, self.scene)
         if self._fcl is None:
-            self._fcl = _FastExact(robot, world, self.cm.kind == "imported")
+            self._fcl = _FastExact(stage, self.cm.kind == "imported")
         fast = self._fcl
-        if fast.ok and (is_self or world.items[c][0] == "fcl"):
+        if fast.ok and (is_self or stage.is_fcl(c)):
             return fast.distance(M, a, c, is_self)
-        return pair_distance(robot, world, M, a, c, is_self, reach=reach)
+        return stage.pair_distance(M, a, c, is_self, reach=reach)
 
 
 class _FastExact:
     """The exact stage with the FCL objects of every link built once and posed in place
     (imported robots; ``ok`` False otherwise)."""
 
-    def __init__(self, robot: Any, world: Any, imported: bool) -> None:
+    def __init__(self, stage: Any, imported: bool) -> None:
         import fcl
 
-        from planning.collision.exact import _collide
-
         self.fcl = fcl
-        self.collide = _collide
+        self.stage = stage
         self.ok = imported
         self.links: list[list[tuple[Any, np.ndarray]]] = []
         if imported:
-            for shapes in robot.shapes:
+            for shapes in stage.robot.shapes:
                 self.links.append([(fcl.CollisionObject(sh.geom), np.asarray(sh.T, float))
                                    for sh in shapes])
-        self.world = world
 
     def _pose(self, M: np.ndarray, k: int, posed: dict) -> list:
         objs = posed.get(k)
@@ -413,16 +410,14 @@ class _FastExact:
     def collides(self, M: np.ndarray, a: int, c: int, is_self: bool, posed: dict,
                  margin: float) -> bool:
         A = self._pose(M, a, posed)
-        B = self._pose(M, c, posed) if is_self else [self.world.items[c][1]]
-        return any(self.collide(o1, o2, margin) for o1 in A for o2 in B)
+        B = self._pose(M, c, posed) if is_self else [self.stage.item(c)]
+        return any(self.stage.collide(o1, o2, margin) for o1 in A for o2 in B)
 
     def distance(self, M: np.ndarray, a: int, c: int, is_self: bool) -> float:
-        from planning.collision.exact import _distance
-
         posed: dict = {}
         A = self._pose(M, a, posed)
-        B = self._pose(M, c, posed) if is_self else [self.world.items[c][1]]
-        return min(_distance(o1, o2) for o1 in A for o2 in B)
+        B = self._pose(M, c, posed) if is_self else [self.stage.item(c)]
+        return min(self.stage.distance(o1, o2) for o1 in A for o2 in B)
 
 
 # ---- arrays for the kernels ---------------------------------------------------------------------
@@ -542,80 +537,25 @@ def _tables(cm: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _scene_arrays(scene: Any) -> tuple:
     """``(has_scene, kind, T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells,
-    set_meta)`` of a ``CollisionScene`` (or empty ones)."""
+    set_meta)`` of a ``CollisionScene`` (or empty ones); None when one of its shapes has no
+    compiled kernel."""
     if scene is None:
         return (False, np.zeros(0, np.int64), np.zeros((0, 3, 4)), np.zeros((0, 4)),
                 np.zeros((0, 6)), np.full(1, np.inf), np.array([0, 0, 0, 1, 1, 1, 1.0]),
                 np.array([-np.inf] * 3 + [np.inf] * 3), np.zeros((0, 4)),
                 np.zeros(1, np.int64), np.zeros((0, 9)))
-    from planning.collision.distance import frames_along
+    from planning.geometry.compiled import kernel_objects
 
     cs = scene.compiled()
-    n = cs.n
-    kind = np.full(n, -1, dtype=np.int64)
-    T_inv = np.zeros((n, 3, 4))
-    par = np.zeros((n, 4))
-
-    def inverse(T):
-        R, p = T[:3, :3], T[:3, 3]
-        out = np.empty((3, 4))
-        out[:, :3] = R.T
-        out[:, 3] = -R.T @ p
-        return out
-
-    for k, i in enumerate(cs.box_obj):
-        kind[i], T_inv[i], par[i, :3] = 0, inverse(cs.box_T[k]), 0.5 * cs.box_size[k]
-    for k, i in enumerate(cs.cyl_obj):
-        kind[i], T_inv[i] = 1, inverse(cs.cyl_T[k])
-        par[i, :2] = cs.cyl_r[k], 0.5 * cs.cyl_h[k]
-    for k, i in enumerate(cs.sph_obj):
-        T = np.eye(4)
-        T[:3, 3] = cs.sph_c[k]
-        kind[i], T_inv[i], par[i, 0] = 2, inverse(T), cs.sph_r[k]
-    for k, i in enumerate(cs.cap_obj):
-        A, B = cs.cap_A[k], cs.cap_B[k]
-        T = frames_along(0.5 * (A + B), B - A)
-        kind[i], T_inv[i] = 3, inverse(T)
-        par[i, :2] = cs.cap_r[k], 0.5 * float(np.linalg.norm(B - A))
-    balls, cells, meta = [], [np.zeros(1, np.int64)], []
-    n_cells = 0
-    for s, (i, bs) in enumerate(cs.sets):
-        kind[i], par[i, 0] = 4, s
-        B, start, m = _ball_grid(bs.balls, n_cells)
-        balls.append(B)
-        cells.append(start[1:] + sum(len(x) for x in balls[:-1]))
-        meta.append(m)
-        n_cells += len(start) - 1
-    aabb = np.array([np.r_[a, b] for a, b in cs.bounds]).reshape(-1, 6)
-    if n > GRID_OBJECTS:
+    packed = kernel_objects(cs.objects, cs.sets, cs.bounds)
+    if packed is None:  # a shape without a compiled kernel: the Python checks
+        return None
+    kind, T_inv, par, aabb, balls, cells, set_meta = packed
+    if cs.n > GRID_OBJECTS:
         lo, h, shape, values = cs.grid
         grid_meta = np.r_[lo, h, shape].astype(float)
     else:   # few objects: tested one by one, no grid to build
         values, grid_meta = np.full(1, np.inf), np.array([0, 0, 0, 0, 1, 1, 1.0])
-    c = np.ascontiguousarray
-    return (True, kind, c(T_inv), c(par), c(aabb), c(values, dtype=float), grid_meta,
-            np.r_[cs.lo, cs.hi].astype(float),
-            c(np.concatenate(balls)) if balls else np.zeros((0, 4)),
-            c(np.concatenate(cells)).astype(np.int64),
-            c(np.array(meta)).reshape(-1, 9))
+    return (True, kind, T_inv, par, aabb, np.ascontiguousarray(values, dtype=float),
+            grid_meta, np.r_[cs.lo, cs.hi].astype(float), balls, cells, set_meta)
 
-
-def _ball_grid(balls: np.ndarray, first: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Balls sorted by the cell of their centre on a grid over them, the cells' starts
-    ``(cells + 1,)`` (from 0) and the set's meta row (lo, h, shape, first cell, rmax)."""
-    lo = balls[:, :3].min(0)
-    hi = balls[:, :3].max(0)
-    ext = np.maximum(hi - lo, 1e-9)
-    r = float(np.median(balls[:, 3]))
-    h = max(4.0 * r, float(np.cbrt(ext.prod() / _SET_CELLS)), 1e-6)
-    shape = np.maximum(np.floor(ext / h).astype(np.int64) + 1, 1)
-    while shape.prod() > _SET_CELLS:
-        h *= 1.1
-        shape = np.maximum(np.floor(ext / h).astype(np.int64) + 1, 1)
-    idx = np.minimum(np.floor((balls[:, :3] - lo) / h).astype(np.int64), shape - 1)
-    flat = (idx[:, 0] * shape[1] + idx[:, 1]) * shape[2] + idx[:, 2]
-    order = np.argsort(flat, kind="stable")
-    counts = np.bincount(flat, minlength=int(shape.prod()))
-    start = np.r_[0, np.cumsum(counts)].astype(np.int64)
-    meta = np.r_[lo, h, shape, first, balls[:, 3].max()].astype(float)
-    return balls[order], start, meta

@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..geometry.segments import segment_point_distance
+
 __all__ = ["BroadPhase", "MAX_PAIRS"]
 
 #: Most candidate pairs one query returns; callers pass at most ``MAX_PAIRS // n`` segments
@@ -149,10 +151,7 @@ class BroadPhase:
         P0 = np.asarray(P0, dtype=float).reshape(-1, 3)
         P1 = np.asarray(P1, dtype=float).reshape(-1, 3)
         a, b, c = P0[seg], P1[seg], self.centres[obs]
-        d = b - a
-        dd = np.einsum("ij,ij->i", d, d)
-        t = np.clip(np.einsum("ij,ij->i", c - a, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-        ball = np.linalg.norm(c - (a + t[:, None] * d), axis=1) - self.radii[obs]
+        ball = segment_point_distance(a, b, c)[0] - self.radii[obs]
         gap = np.max(np.maximum(self.lower[obs] - np.maximum(a, b),
                                 np.minimum(a, b) - self.upper[obs]), axis=1)
         return np.maximum(ball, gap)

@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from kinematics.fk import fk_frames
 from kinematics.model import RobotModel
 from planning.collision import CollisionScene, RobotCollisionModel, check, collides
-from planning.collision.spheres import box_solid, cover_link, cylinder_solid, sphere_solid
+from planning.geometry.spheres import box_solid, cover_link, cylinder_solid, sphere_solid
 
 fcl = pytest.importorskip("fcl")
 

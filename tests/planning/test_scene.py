@@ -12,15 +12,15 @@ from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
 
 from kinematics.errors import FieldError
-from planning.paths import scene as scene_module
-from planning.paths.broadphase import BlockedGrid, BroadPhase
-from planning.paths.scene import (
-    Scene,
-    obstacle_from_dict,
+from planning.geometry.obstacles import obstacle_from_dict
+from planning.geometry.segments import (
     segment_box_distance,
     segment_point_distance,
     segment_segment_distance,
 )
+from planning.paths import scene as scene_module
+from planning.paths.broadphase import BlockedGrid, BroadPhase
+from planning.paths.scene import Scene
 
 RNG_SEED = 20240601
 

@@ -1,11 +1,13 @@
-"""Exact signed distances from points to the convex primitives and to triangles.
+"""Exact distances from points to the convex primitives and to triangles: the Python twins
+of the compiled point kernels (``planning.geometry.kernels``), side by side in the pair table
+(``planning.geometry.table``).
 
 Every function is vectorised: points ``P (K, 3)`` against ``n`` objects of one kind give
 ``(K, n)`` (positive outside, negative inside: minus the depth), in mm. A sphere of radius
 ``r`` centred at ``p`` touches or overlaps an object exactly when ``distance(p) <= r``, and
 ``distance(p) - r`` is then the sphere's signed distance to the object (exact for convex
-objects outside, and a lower bound of it inside). The primitives' local frames follow the
-scene objects (``planning.collision.shapes``): a box centred on its origin with full sides
+objects outside, and a lower bound of it inside). The primitives' local frames are the scene
+objects' (``planning.geometry.shapes``): a box centred on its origin with full sides
 ``size``, a cylinder centred on its origin along local z with ``height``, a capsule between
 two points.
 """
@@ -22,6 +24,9 @@ __all__ = [
     "segment_distance",
     "triangle_distance",
     "frames_along",
+    "segment_frame",
+    "capsule_distance",
+    "ball_set_distance",
 ]
 
 
@@ -123,3 +128,26 @@ def frames_along(A: np.ndarray, E: np.ndarray) -> np.ndarray:
     T[..., :3, 0], T[..., :3, 1], T[..., :3, 2], T[..., :3, 3] = x, y, z, A
     T[..., 3, 3] = 1.0
     return T
+
+
+def segment_frame(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """A pose ``(4, 4)`` at the midpoint of ``a``-``b`` ``(3,)`` whose z axis runs along it
+    (a capsule's or a cylinder's frame between its ends)."""
+    T = frames_along(a, b - a)
+    T[:3, 3] = 0.5 * (a + b)
+    return T
+
+
+def capsule_distance(P: np.ndarray, A: np.ndarray, B: np.ndarray,
+                     radius: np.ndarray) -> np.ndarray:
+    """Signed distance ``(K, n)`` of points ``P (K, 3)`` to capsules: segments
+    ``A (n, 3)`` - ``B (n, 3)`` swept by balls of ``radius (n,)``."""
+    return segment_distance(P, A, B) - radius
+
+
+def ball_set_distance(P: np.ndarray, balls: np.ndarray) -> np.ndarray:
+    """Signed distance ``(K,)`` of points ``P (K, 3)`` to the union of ``balls (M, 4)``
+    (``[x, y, z, radius]``), by brute force: the twin of the compiled ball-set kernel (the
+    collision scene answers the same through a k-d tree, ``planning.geometry.balls``)."""
+    d = np.linalg.norm(P[:, None, :] - balls[None, :, :3], axis=-1) - balls[None, :, 3]
+    return d.min(axis=1)

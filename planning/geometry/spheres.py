@@ -1,4 +1,4 @@
-"""Conservative sphere coverings of collision geometry.
+"""Conservative sphere coverings of geometry: the ball sets of the sphere stage.
 
 Everything here rests on one fact: a ball contains a convex set exactly when it contains
 the set's extreme points. The geometry is cut into convex pieces, each piece's extreme
