@@ -5,11 +5,18 @@ multi-arm motion and trajectory tracking.
   Cartesian lines and ellipses;
 * ``paths``: the scene and its obstacles, tool paths (``plan_path``) and arm paths;
 * ``optimisers``: the metaheuristics behind one interface;
-* ``sequencing``: the drilling order of a face's holes;
+* ``sequencing``: the drilling order of a face's holes (and the face's hole patterns);
+* ``search``: the sampling-based search core (RRT-Connect, RRT*, shortcutting over an
+  abstract space) every sampling planner runs on;
+* ``motion``: joint-space motion of any arm (and an arm's move to a tool point);
 * ``drilling``: tunnel-face drilling with a multi-arm jumbo;
 * ``tracking``: tool-path tracking by a PI law and its gain tuners;
 * ``registry``, ``budget``, ``status``: what they all share (algorithms by name, evaluation
-  budgets, the planners' status).
+  budgets, the planners' status, one family with ``kinematics.status``).
+
+Floors, bottom first (a module imports only from its own floor or below, with no circle):
+status, budget, registry; search; geometry; collision; trajectories; optimisers and
+sequencing; paths; motion; drilling; tracking.
 
 Pure numpy/scipy code: it never imports ``app`` or ``web``. Frames, units and array
 layouts: docs/conventions.md. The names below are the public surface; each loads its module
@@ -21,6 +28,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from kinematics.lazy import lazy_names
+
+from . import catalog  # noqa: F401 - registers the built-in algorithms by name
 
 if TYPE_CHECKING:
     from .drilling import FacePattern as FacePattern

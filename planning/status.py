@@ -1,19 +1,21 @@
 """How a planner's run ended: one status shared by the results of every planner.
 
 A result's ``success`` is ``status is PlanStatus.OK``; its ``message`` says the same in words
-(which obstacle, which joint, how far). Invalid input is not a status but an exception: a
+(which obstacle, which joint, how far). ``PlanStatus`` extends ``kinematics.status.Status``,
+the base every status enum shares (IK's, joint-space motion's, time parameterisation's), whose
+values come from one vocabulary. Invalid input is not a status but an exception: a
 ``kinematics.errors.FieldError`` naming the field.
 """
 
 from __future__ import annotations
 
-from enum import StrEnum
+from kinematics.status import Status
 
-__all__ = ["PlanStatus"]
+__all__ = ["PlanStatus", "Status"]
 
 
-class PlanStatus(StrEnum):
-    """Outcome of a planner's run."""
+class PlanStatus(Status):
+    """Outcome of a planner's run (a member of the status family, ``kinematics.status``)."""
 
     #: A plan that passed every check.
     OK = "ok"

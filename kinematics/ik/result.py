@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from enum import StrEnum
 
 import numpy as np
 
 from ..fast import c_array, chain_of
 from ..fk import fk
 from ..model import RobotModel
+from ..status import Status
 from ..transforms import pose_errors
 
 __all__ = ["IKStatus", "IKResult", "finish_analytic", "finish_one", "expand_turns",
@@ -21,8 +21,8 @@ BRANCH_POSITION_TOL = 1e-4  # mm
 BRANCH_ROTATION_TOL = 1e-7  # rad
 
 
-class IKStatus(StrEnum):
-    """Outcome of an IK request."""
+class IKStatus(Status):
+    """Outcome of an IK request (a member of the status family, ``kinematics.status``)."""
 
     OK = "ok"
     UNREACHABLE = "unreachable"  # no configuration reaches the pose, limits aside

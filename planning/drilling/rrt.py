@@ -1,13 +1,14 @@
 """Joint-space RRT-Connect: the baseline paper 002 compares IAPF with (section 4.2).
 
-Kuffner and LaValle's RRT-Connect (ICRA 2000) in the arm's normalised transfer space
-(``space.ArmSpace``): two trees, from the start and from the goal; each iteration extends one
-tree one ``step`` towards a uniform random sample and then greedily connects the other tree
-to the new node; the trees swap roles every iteration. An edge is free when the arm keeps
-``safety`` mm from every obstacle at points ``edge_resolution`` apart along it (the final
-10 ms check of the smoothed trajectory is the guarantee). The raw path is what the paper's
-baseline smooths; ``shortcut`` > 0 adds that many random shortcut attempts (off by default,
-so the comparison is with a plain RRT).
+Kuffner and LaValle's RRT-Connect (ICRA 2000, ``planning.search.rrt_connect``) in the arm's
+normalised transfer space (``space.ArmSpace``): two trees, from the start and from the goal;
+each iteration extends one tree one ``step`` towards a uniform random sample and then
+greedily connects the other tree to the new node; the trees swap roles every iteration. An
+edge is free when the arm keeps ``safety`` mm from every obstacle at points
+``edge_resolution`` apart along it (the final 10 ms check of the smoothed trajectory is the
+guarantee). The raw path is what the paper's baseline smooths; ``shortcut`` > 0 adds that
+many random shortcut attempts between waypoints (``planning.search.shortcut_vertices``; off
+by default, so the comparison is with a plain RRT).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 
 from kinematics.errors import FieldError
 
+from ..search import Tree, iteration_budget, rrt_connect, shortcut_vertices
 from ..status import PlanStatus
 from .iapf import MovePath
 from .space import ArmSpace, Obstacles
@@ -63,76 +65,43 @@ class RRTConnect:
                 return MovePath(space.from_u(us[None]), PlanStatus.COLLISION,
                                   f"{end} configuration collides", float(c[k]), 0, "rrt")
         margin = min(self.safety, float(c.min()))
-        trees = [([us], [-1]), ([ug], [-1])]
-        for it in range(self.max_iterations):
-            a, b = trees[it % 2], trees[(it + 1) % 2]
-            target = rng.random(3)
-            new = self._extend(space, obstacles, a, target, margin)
-            if new is None:
-                continue
-            joint = self._connect(space, obstacles, b, a[0][new], margin)
-            if joint is not None:
-                start_tree, goal_tree = (a, b) if it % 2 == 0 else (b, a)
-                i_s, i_g = (new, joint) if it % 2 == 0 else (joint, new)
-                path = self._trace(start_tree, i_s)[::-1] + self._trace(goal_tree, i_g)[1:]
-                P = np.array(path)
-                P = self._shortcut(space, obstacles, P, margin, rng)
-                min_c = float(space.clearance(space.from_u(P), obstacles).min())
-                return MovePath(space.from_u(P), PlanStatus.OK, "connected", min_c, it + 1,
-                                  "rrt",
-                                  {"nodes": len(trees[0][0]) + len(trees[1][0])})
+        search = _TransferSpace(self, space, obstacles, margin)
+        res = rrt_connect(search, us, ug, rng, iteration_budget(self.max_iterations))
+        if res.path is not None:
+            P = shortcut_vertices(res.path, search.segment_free, rng, self.shortcut)
+            min_c = float(space.clearance(space.from_u(P), obstacles).min())
+            return MovePath(space.from_u(P), PlanStatus.OK, "connected", min_c,
+                            res.stats["iterations"], "rrt", {"nodes": res.stats["nodes"]})
         return MovePath(space.from_u(us[None]), PlanStatus.BUDGET_SPENT,
                           f"no connection in {self.max_iterations} iterations",
                           float(c.min()), self.max_iterations, "rrt")
 
-    # ---- tree operations ---------------------------------------------------------------
-    def _edge_free(self, space, obstacles, u0, u1, margin) -> bool:
-        n = max(1, int(np.ceil(np.linalg.norm(u1 - u0) / self.edge_resolution)))
-        pts = u0 + np.linspace(0.0, 1.0, n + 1)[1:, None] * (u1 - u0)
-        return bool(space.clearance(space.from_u(pts), obstacles).min() >= margin)
 
-    def _extend(self, space, obstacles, tree, target, margin) -> int | None:
-        nodes, parents = tree
-        N = np.asarray(nodes)
-        i = int(np.argmin(np.linalg.norm(N - target, axis=1)))
-        d = target - N[i]
+class _TransferSpace:
+    """The normalised transfer space as a ``planning.search`` space: samples
+    ``rng.random(3)``, the Euclidean metric, steps of ``step``, edges free when the arm
+    keeps ``margin`` mm at points ``edge_resolution`` apart."""
+
+    def __init__(self, planner: RRTConnect, space: ArmSpace, obstacles: Obstacles,
+                 margin: float) -> None:
+        self.planner, self.space, self.obstacles, self.margin = planner, space, obstacles, margin
+
+    def sample(self, rng: np.random.Generator) -> np.ndarray:
+        return rng.random(3)
+
+    def nearest(self, tree: Tree, x: np.ndarray) -> int:
+        return int(np.argmin(np.linalg.norm(tree.nodes - x, axis=1)))
+
+    def steer(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray | None, bool]:
+        d = b - a
         dist = float(np.linalg.norm(d))
         if dist < 1e-12:
-            return i
-        new = N[i] + d * min(1.0, self.step / dist)
-        if not self._edge_free(space, obstacles, N[i], new, margin):
-            return None
-        nodes.append(new)
-        parents.append(i)
-        return len(nodes) - 1
+            return None, True
+        new = a + d * min(1.0, self.planner.step / dist)
+        return new, bool(np.linalg.norm(new - b) < 1e-9)
 
-    def _connect(self, space, obstacles, tree, target, margin) -> int | None:
-        """Extend ``tree`` towards ``target`` until it gets there (its node index) or is
-        blocked (None)."""
-        while True:
-            k = self._extend(space, obstacles, tree, target, margin)
-            if k is None:
-                return None
-            if np.linalg.norm(tree[0][k] - target) < 1e-9:
-                return k
-
-    @staticmethod
-    def _trace(tree, i) -> list[np.ndarray]:
-        nodes, parents = tree
-        out = []
-        while i >= 0:
-            out.append(nodes[i])
-            i = parents[i]
-        return out
-
-    def _shortcut(self, space, obstacles, P, margin, rng) -> np.ndarray:
-        P = list(P)
-        for _ in range(self.shortcut):
-            if len(P) < 3:
-                break
-            i, j = sorted(rng.choice(len(P), size=2, replace=False))
-            if j - i < 2:
-                continue
-            if self._edge_free(space, obstacles, P[i], P[j], margin):
-                P = P[: i + 1] + P[j:]
-        return np.array(P)
+    def segment_free(self, u0: np.ndarray, u1: np.ndarray) -> bool:
+        n = max(1, int(np.ceil(np.linalg.norm(u1 - u0) / self.planner.edge_resolution)))
+        pts = u0 + np.linspace(0.0, 1.0, n + 1)[1:, None] * (u1 - u0)
+        clearance = self.space.clearance(self.space.from_u(pts), self.obstacles)
+        return bool(clearance.min() >= self.margin)

@@ -3,7 +3,9 @@ configuration or a tool pose, checked against the robot's own geometry and a sce
 
 ``MotionChecker`` (compiled, batched validity checks), the searches of ``search``
 (RRT-Connect, RRT*, shortcutting) and ``plan_motion``, which validates, searches, simplifies,
-times and reports a ``MotionResult``.
+times and reports a ``MotionResult``. ``arm_motion.plan_arm_motion`` (imported by its module
+path, so that ``import planning.motion`` loads no path planner) moves an arm to a tool point:
+the tool path of ``planning.paths.arm`` when the arm can follow it, else a joint-space motion.
 """
 
 from .checker import DEFAULT_RESOLUTION, PRISMATIC_SCALE, PRISMATIC_STEP, MotionChecker

@@ -36,12 +36,12 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from enum import StrEnum
 from typing import Any
 
 import numpy as np
 
 from kinematics.errors import FieldError
+from kinematics.status import Status
 
 from .checker import DEFAULT_RESOLUTION, MIN_RESOLUTION, MotionChecker
 from .search import (
@@ -55,7 +55,8 @@ from .search import (
     sphere_free,
 )
 
-__all__ = ["MotionStatus", "MotionResult", "plan_motion", "PLANNERS", "MAX_RESOLUTION",
+__all__ = ["MotionStatus", "MotionResult", "plan_motion", "plan_checked", "PLANNERS",
+           "MAX_RESOLUTION",
            "MIN_RESOLUTION", "MAX_TIME_LIMIT"]
 
 PLANNERS = ("auto", "rrt_connect", "rrt_star")
@@ -92,8 +93,8 @@ SHORTCUT_ATTEMPTS_EXACT = 40
 BLEND_DEVIATIONS = (0.05, 0.01, 0.002)
 
 
-class MotionStatus(StrEnum):
-    """How a motion plan ended."""
+class MotionStatus(Status):
+    """How a motion plan ended (a member of the status family, ``kinematics.status``)."""
 
     OK = "ok"
     START_IN_COLLISION = "start_in_collision"
@@ -260,16 +261,33 @@ def plan_motion(checker: MotionChecker, start, goal=None, *, goal_pose=None, mod
                          open_low=False)
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
         raise FieldError(("seed",), "seed must be an integer")
-    rng = np.random.default_rng(int(seed))
+    q_goal = pose = None
     if goal is not None:
         q_goal = _vector(goal, dof, ("goal", "q"))
-        pose = None
     else:
         pose = np.asarray(goal_pose, dtype=float)
         if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
             raise FieldError(("goal", "pose"), "goal.pose must be a finite 4x4 matrix")
-        if model is None:
-            model = checker.robot_model
+    return plan_checked(checker, q_start, q_goal, pose, model=model, planner=planner,
+                        time_limit=time_limit, seed=int(seed), resolution=resolution,
+                        simplify=simplify, trajectory=trajectory, limits=limits,
+                        hydraulics=hydraulics, progress=progress, t0=t0)
+
+
+def plan_checked(checker: MotionChecker, q_start: np.ndarray, q_goal: np.ndarray | None,
+                 pose: np.ndarray | None, *, model=None, planner: str, time_limit: float,
+                 seed: int, resolution: float, simplify: bool = True, trajectory: bool = True,
+                 limits=None, hydraulics=None, progress=None,
+                 t0: float | None = None) -> MotionResult:
+    """``plan_motion`` of arguments already checked (a ``MotionRequest``'s: the service
+    validates a request once, where it reads it): ``q_start (dof,)`` and either ``q_goal
+    (dof,)`` or ``pose (4, 4)`` floats, ``planner`` one of ``PLANNERS``, ``time_limit`` and
+    ``resolution`` within their bounds. ``t0``: when the request's clock started (now)."""
+    t0 = time.perf_counter() if t0 is None else t0
+    dof = checker.dof
+    rng = np.random.default_rng(seed)
+    if pose is not None and model is None:
+        model = checker.robot_model
     deadline = t0 + time_limit
     base = {"planner": planner, "resolution": resolution}
 
@@ -493,10 +511,9 @@ def _trajectory(checker: MotionChecker, path: np.ndarray, resolution: float, lim
                 hydraulics) -> tuple[Any, str]:
     """The time-optimal trajectory along ``path`` with blended corners whose samples are
     free (tightening the blends until they are), and a note of what was done."""
-    from planning.paths.arm import ARM_ACCELERATION
     from planning.trajectories.joint_path import smooth_polyline
     from planning.trajectories.topp import time_optimal
-    from planning.trajectories.trajectory import Limits
+    from planning.trajectories.trajectory import ARM_ACCELERATION, Limits
 
     rm = checker.robot_model
     if limits is None:

@@ -17,6 +17,10 @@ service answers 422 there before any planning starts. ``scene`` is passed throug
 (a stored scene's id, an inline scene or None): finding a stored scene is the caller's
 business.
 
+A caller whose body is typed and checked already (the service's pydantic models: field
+types, bounds, unknown fields) builds its problems with ``robot_problem``, which checks only
+what depends on the robot, with the same messages and locations: a body is validated once.
+
 Example::
 
     >>> from kinematics.library import builtin_model
@@ -49,6 +53,7 @@ __all__ = [
     "MotionRequest",
     "parse_motion_request",
     "parse_motion_problems",
+    "robot_problem",
     "is_batch",
     "REQUEST_FIELDS",
     "PROBLEM_FIELDS",
@@ -119,14 +124,18 @@ class MotionRequest:
     def plan(self, checker: Any, model: RobotModel | None = None, progress: Any = None
              ) -> Any:
         """``plan_motion`` of this request with ``checker`` (see ``checker``); ``model`` is
-        the robot model (IK of a goal pose, default trajectory limits)."""
-        from .planner import plan_motion
+        the robot model (IK of a goal pose, default trajectory limits). The request was
+        checked when it was read: its values go to the planner as they are
+        (``plan_checked``), not through ``plan_motion``'s checks again."""
+        from .planner import plan_checked
 
-        return plan_motion(checker, self.start, self.goal, goal_pose=self.goal_pose,
-                           model=model, planner=self.planner, time_limit=self.time_limit,
-                           seed=self.seed, resolution=self.resolution,
-                           simplify=self.simplify, trajectory=self.trajectory,
-                           progress=progress)
+        return plan_checked(
+            checker, np.asarray(self.start, dtype=float),
+            None if self.goal is None else np.asarray(self.goal, dtype=float),
+            None if self.goal_pose is None else np.asarray(self.goal_pose, dtype=float),
+            model=model, planner=self.planner, time_limit=float(self.time_limit),
+            seed=int(self.seed), resolution=float(self.resolution), simplify=self.simplify,
+            trajectory=self.trajectory, progress=progress)
 
 
 # ---- fields ---------------------------------------------------------------------------------
@@ -268,6 +277,20 @@ def _settings(body: Mapping[str, Any], max_time_limit: float) -> dict[str, Any]:
         out[key] = _flag(get(key, True), (key,))
     out["margin"] = _margin(get("margin", 0.0), ("margin",))
     return out
+
+
+def robot_problem(model: RobotModel, start: Any, goal: Mapping[str, Any], *, loc: Loc = (),
+                  **settings: Any) -> MotionRequest:
+    """One problem of ``model`` whose settings (``planner``, ``time_limit``, ``seed``,
+    ``resolution``, ``simplify``, ``self_collision``, ``margin``, ``trajectory``, ``scene``:
+    the ``MotionRequest`` fields besides the endpoints) are already checked, as a typed
+    model (the service's pydantic models) or ``parse_motion_request`` checks them: only what
+    depends on the robot is checked here, ``start (dof,)`` and ``goal`` (``{"q": (dof,)}``
+    or ``{"pose": (4, 4)}``, mm, projected onto the nearest rigid pose). ``FieldError`` at
+    ``loc`` + the field."""
+    q_start = _joints(start, model, (*loc, "start"))
+    q_goal, goal_pose = _goal(goal, model, (*loc, "goal"))
+    return MotionRequest(start=q_start, goal=q_goal, goal_pose=goal_pose, **settings)
 
 
 def _problem(item: Any, model: RobotModel, settings: dict[str, Any], loc: Loc,

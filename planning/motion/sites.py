@@ -10,7 +10,7 @@ geometry, found by FK over a seeded sample of its configurations (``reach_band``
   standing beside the machine on a line from its swing axis, so that swinging from one side
   of the wall to the other means lifting the arm over it;
 * ``tunnel_site``: a horseshoe tunnel (vertical walls, semicircular roof, flat floor, the
-  profile of ``planning.drilling.patterns.FacePattern``) as one triangle mesh around the
+  profile of ``planning.sequencing.patterns.FacePattern``) as one triangle mesh around the
   drilling jumbo, with the rock face closing it, for ``tunnel_drill_arm`` and the
   ``tunnel_jumbo``'s arms (the rig frame: x along the tunnel towards the face);
 * ``pallet_station``: the floor, an infeed conveyor and one or two pallets with their loads
@@ -37,7 +37,7 @@ from kinematics.drilling import drill_ik
 from kinematics.fk import fk, fk_frames
 from kinematics.model import RobotModel
 from planning.collision import CollisionScene
-from planning.drilling.patterns import FacePattern, face_pattern
+from planning.sequencing.patterns import FacePattern, face_pattern
 
 __all__ = ["ReachBand", "reach_band", "pile_driver_site", "tunnel_site", "tunnel_profile",
            "pallet_station", "arm_capsules", "jumbo_site", "TUNNEL_MESH_RESOLUTION",

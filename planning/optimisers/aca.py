@@ -15,10 +15,10 @@ arrived deposits ``Q / L`` on its nodes. Grid size and window are ours (the pape
 none).
 
 This needs the scene, not just a box, so ``plan_layers`` is the entry point
-``planning.paths.plan_path`` uses for paths (with the path encoding of
-``planning.paths.encoding``, which imports no planner). ``minimize`` is the same colony on a
-generic box problem: each coordinate is a "slice" of ``grid`` levels and there is no
-heuristic.
+``planning.paths.plan_path`` uses for paths: it hands over the path encoding
+(``planning.paths.PathEncoding``: scene, start, goal, penalised cost), so the colony never
+imports the paths package that sits above it. ``minimize`` is the same colony on a generic
+box problem: each coordinate is a "slice" of ``grid`` levels and there is no heuristic.
 """
 
 from __future__ import annotations
@@ -27,7 +27,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..paths.encoding import PathEncoding
 from .base import Budget, OptimResult, Problem, ProgressFn, run_with_budget
 
 __all__ = ["AntColony"]
@@ -125,18 +124,25 @@ class AntColony:
         s = np.arange(1, self.n_slices + 1) / (self.n_slices + 1)
         return start + s[:, None, None] * axis + offsets[None]
 
-    def plan_layers(self, scene, start, goal, rng: np.random.Generator, *,
-                    penalty: float = 1000.0, margin: float | None = None,
+    def plan_layers(self, enc, rng: np.random.Generator, *, margin: float | None = None,
                     max_evaluations: int | None = None,
                     progress: ProgressFn | None = None) -> OptimResult:
-        """Best ant path from ``start`` to ``goal`` (mm) through the slices of ``scene``.
+        """Best ant path from ``enc.start`` to ``enc.goal`` (mm) through the slices of
+        ``enc.scene``.
 
-        Returns an ``OptimResult`` whose ``x`` is the slice nodes ``(3 n_slices,)`` and whose
+        ``enc``: the path encoding (``planning.paths.PathEncoding`` with ``k = n_slices``
+        waypoints): its ``scene``, ``start``, ``goal``, ``planning_margin``, ``decode`` and
+        ``problem`` (the penalised length the ants are scored by). Returns an
+        ``OptimResult`` whose ``x`` is the slice nodes ``(3 n_slices,)`` and whose
         ``extra["path"]`` is the full polyline ``(n_slices + 2, 3)`` (None if no ant ever
-        arrived). ``margin`` defaults to the scene's safety margin plus the encoding's slack.
+        arrived). ``margin`` defaults to the encoding's planning margin (the scene's safety
+        margin plus the encoding's slack).
         """
-        start, goal = np.asarray(start, float), np.asarray(goal, float)
-        enc = PathEncoding(scene, start, goal, self.n_slices, penalty)
+        if enc.k != self.n_slices:
+            raise ValueError(f"the encoding has {enc.k} waypoints, the colony "
+                             f"{self.n_slices} slices")
+        scene = enc.scene
+        start, goal = np.asarray(enc.start, float), np.asarray(enc.goal, float)
         margin = enc.planning_margin if margin is None else margin
         nodes = self.layers(scene, start, goal)
         L, M, G, w = self.n_slices, self.grid ** 2, self.grid, self.window

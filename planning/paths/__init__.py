@@ -8,9 +8,9 @@
 * ``auto``: the visibility-graph planner (``auto``), RRT* and the certifier the tests hold
   planners to;
 * ``planners``: ``plan_path``, any planner by name, verified and shortened;
-* ``arm``: ``plan_arm_path``, a tool path the whole arm follows clear of the obstacles;
-* ``arm_motion``: ``plan_arm_motion``, that tool path or, when the arm cannot follow it, a
-  joint-space motion (``planning.motion``) in the same obstacles;
+* ``arm``: ``plan_arm_path``, a tool path the whole arm follows clear of the obstacles
+  (``planning.motion.arm_motion.plan_arm_motion``, one floor up, falls back on a joint-space
+  motion when the arm cannot follow it);
 * ``compare``: repeated runs of several planners side by side.
 
 The names below load their module on first use, so importing ``planning.paths.encoding``
@@ -27,7 +27,6 @@ if TYPE_CHECKING:
     from .arm import ArmPathResult as ArmPathResult
     from .arm import arm_clearance as arm_clearance
     from .arm import plan_arm_path as plan_arm_path
-    from .arm_motion import plan_arm_motion as plan_arm_motion
     from .auto import certified_shortest_path as certified_shortest_path
     from .auto import plan_auto as plan_auto
     from .auto import plan_rrt_star as plan_rrt_star
@@ -50,7 +49,6 @@ _LAZY = {
     "ArmPathResult": "arm",
     "arm_clearance": "arm",
     "plan_arm_path": "arm",
-    "plan_arm_motion": "arm_motion",
     "certified_shortest_path": "auto",
     "plan_auto": "auto",
     "plan_rrt_star": "auto",

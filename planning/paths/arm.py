@@ -48,14 +48,15 @@ from kinematics.model import RobotModel
 from kinematics.numbers import finite_or_none
 
 from ..budget import ProgressFn
+from ..geometry.segments import segment_point_distance
 from ..status import PlanStatus
 from ..trajectories.bspline import quintic_bspline
 from ..trajectories.hydraulic import hydraulic_limits
 from ..trajectories.joint_path import JointPath
 from ..trajectories.topp import time_optimal
-from ..trajectories.trajectory import Limits, Trajectory
+from ..trajectories.trajectory import ARM_ACCELERATION, ARM_JERK, Limits, Trajectory
 from .planners import PathResult, plan_path
-from .scene import Capsule, Scene, segment_point_distance
+from .scene import Capsule, Scene
 
 __all__ = ["ArmPathResult", "plan_arm_path", "link_capsules", "arm_clearance"]
 
@@ -63,11 +64,6 @@ __all__ = ["ArmPathResult", "plan_arm_path", "link_capsules", "arm_clearance"]
 DEFAULT_LINK_RADIUS = 60.0
 #: Null-space gain towards mid-range while following the path (per IK iteration).
 CENTRING = 0.02
-#: Joint acceleration limits of optimal arm-path timing when none are given: rad/s² for
-#: revolute joints, mm/s² for prismatic ones (a heavy hydraulic arm reaches 1 rad/s in 1 s).
-ARM_ACCELERATION = (1.0, 500.0)
-#: Joint jerk limits likewise (rad/s³, mm/s³): the acceleration builds up in 0.2 s.
-ARM_JERK = (5.0, 2500.0)
 #: Arm-path timings: as fast as the limits allow, or arc length over a given duration.
 ARM_TIMINGS = ("optimal", "uniform")
 
@@ -83,7 +79,7 @@ class ArmPathResult:
     ``collision`` (a link hits an obstacle, at a sample or along the joint trajectory);
     ``out_of_limits`` (the joint trajectory leaves the joint limits or a cylinder its
     stroke). ``planner``: what produced the motion, ``tool_space`` (this module: the tool
-    path, followed by IK) or ``joint_space`` (``planning.paths.arm_motion``)."""
+    path, followed by IK) or ``joint_space`` (``planning.motion.arm_motion``)."""
 
     tool: PathResult
     points: np.ndarray

@@ -30,8 +30,9 @@ surfaces, and no tightening: an independent, verified path whose length bounds t
 path from above and approaches it as samples grow. Tests hold ``plan_auto`` to within 1 % of
 it.
 
-``plan_rrt_star``: RRT* (Karaman & Frazzoli 2011) with exact edge checks, seeded; a sampling
-baseline (the spec's "sampling planner"), shortened afterwards by ``encoding.shortcut``.
+``plan_rrt_star``: RRT* (Karaman & Frazzoli 2011, ``planning.search.rrt_star`` in the scene's
+box) with exact edge checks, seeded; a sampling baseline (the spec's "sampling planner"),
+shortened afterwards by ``encoding.shortcut``.
 
 Lengths in mm; points ``(3,)``; paths ``(n, 3)``.
 """
@@ -50,6 +51,7 @@ from scipy.sparse.csgraph import dijkstra
 from kinematics.errors import FieldError
 
 from ..budget import ProgressFn
+from ..search import BoxSpace, rrt_star
 from ..status import PlanStatus
 from .broadphase import BlockedGrid
 from .encoding import planning_slack, shortcut
@@ -614,76 +616,13 @@ def plan_rrt_star(scene: Scene, start, goal, rng: np.random.Generator, *,
             raise FieldError(("params", name), "params: samples >= 1, step > 0, "
                              "0 <= goal_bias <= 1, gamma > 0")
     margin = scene.safety_margin + planning_slack(scene)
-    start, goal = np.asarray(start, float), np.asarray(goal, float)
-
-    def clear(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return scene.segments_clear(a, b, margin)
-
-    cap = n_samples + 1
-    X = np.empty((cap, 3))
-    parent = np.full(cap, -1)
-    cost = np.zeros(cap)
-    children: list[list[int]] = [[]]
-    X[0] = start
-    n = 1
-    best_cost, best_node = math.inf, -1
-    goal_links: list[int] = []
-    history: list[float] = []
-    t0 = time.perf_counter()
-    for it in range(n_samples):
-        x_rand = goal if rng.random() < goal_bias else rng.uniform(scene.lower, scene.upper)
-        d = np.linalg.norm(X[:n] - x_rand, axis=1)
-        near_i = int(np.argmin(d))
-        x_new = x_rand if d[near_i] <= step else X[near_i] + (x_rand - X[near_i]) * (
-            step / d[near_i])
-        if d[near_i] == 0 or not clear(X[near_i][None], x_new[None])[0]:
-            continue
-        r = min(step, gamma * (math.log(n + 1) / (n + 1)) ** (1 / 3))
-        dn = np.linalg.norm(X[:n] - x_new, axis=1)
-        near = np.nonzero(dn <= max(r, dn[near_i]))[0]
-        ok = clear(X[near], np.broadcast_to(x_new, (len(near), 3)))
-        near, dnear = near[ok], dn[near][ok]
-        via = cost[near] + dnear
-        k = int(np.argmin(via))
-        X[n], parent[n], cost[n] = x_new, near[k], via[k]
-        children.append([])
-        children[near[k]].append(n)
-        new = n
-        n += 1
-        # Rewire: neighbours reached more cheaply through the new node.
-        better = cost[new] + dnear < cost[near]
-        for j, dj in zip(near[better], dnear[better]):
-            children[parent[j]].remove(j)
-            parent[j] = new
-            children[new].append(j)
-            delta = cost[new] + dj - cost[j]
-            stack = [j]
-            while stack:  # the whole subtree gets cheaper by delta
-                m = stack.pop()
-                cost[m] += delta
-                stack.extend(children[m])
-        dg = float(np.linalg.norm(goal - x_new))
-        if dg <= step and clear(x_new[None], goal[None])[0]:
-            goal_links.append(new)
-        if goal_links:
-            gl = np.array(goal_links)
-            tot = cost[gl] + np.linalg.norm(X[gl] - goal, axis=1)
-            best_node = int(gl[np.argmin(tot)])
-            best_cost = float(tot.min())
-        if it % 100 == 99:
-            history.append(best_cost)
-            if progress is not None:
-                progress((it + 1) / n_samples)
-        if time_limit is not None and time.perf_counter() - t0 > float(time_limit):
-            break
-    history.append(best_cost)
-    if best_node < 0:
-        return RawPlan(None, np.array(history), n, {
+    space = BoxSpace(scene.lower, scene.upper, step,
+                     lambda a, b: scene.segments_clear(a, b, margin))
+    res = rrt_star(space, start, goal, rng, samples=n_samples, step=step, goal_bias=goal_bias,
+                   gamma=gamma, time_limit=time_limit, progress=progress)
+    n = res.stats["tree_nodes"]
+    if res.path is None:
+        return RawPlan(None, res.history, n, {
             "message": f"rrt_star: no path to the goal after {n} tree nodes"},
             PlanStatus.BUDGET_SPENT)
-    chain, k = [], best_node
-    while k >= 0:
-        chain.append(X[k])
-        k = parent[k]
-    path = np.vstack([np.array(chain[::-1]), goal])
-    return RawPlan(path, np.array(history), n, {"tree_nodes": n})
+    return RawPlan(res.path, res.history, n, {"tree_nodes": n})

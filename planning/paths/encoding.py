@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..optimisers.base import Problem
+from ..search.shortcut import dedupe, farthest_visible, shortcut_chords
 from .scene import Scene
 
 __all__ = [
@@ -109,24 +110,16 @@ class PathEncoding:
         return Problem(self.cost, lower, upper)
 
 
-def dedupe(path: np.ndarray) -> np.ndarray:
-    """Drop consecutive duplicate vertices (keeps at least start and goal)."""
-    keep = np.ones(len(path), dtype=bool)
-    keep[1:] = np.any(np.abs(np.diff(path, axis=0)) > 0, axis=1)
-    keep[-1] = True
-    out = path[keep]
-    return out if len(out) >= 2 else np.vstack([path[0], path[-1]])
-
-
 def shortcut(scene: Scene, path, rng: np.random.Generator | None = None,
              random_tries: int = DEFAULT_RANDOM_SHORTCUTS, margin: float | None = None
              ) -> np.ndarray:
     """Shorten a clear polyline ``(n, 3)``, keeping it clear (exact check at ``margin``,
     default the scene's safety margin).
 
-    Greedy pass: from each kept vertex jump to the farthest later vertex it sees. Then
-    ``random_tries`` seeded random shortcuts between two points anywhere on the path
-    (vertices or inside segments), each kept only if the connecting segment is clear.
+    Greedy pass: from each kept vertex jump to the farthest later vertex it sees
+    (``planning.search.farthest_visible``). Then ``random_tries`` seeded random shortcuts
+    between two points anywhere on the path (vertices or inside segments), each kept only if
+    the connecting segment is clear (``planning.search.shortcut_chords``).
     """
     margin = scene.safety_margin if margin is None else margin
     path = dedupe(np.asarray(path, dtype=float))
@@ -134,31 +127,7 @@ def shortcut(scene: Scene, path, rng: np.random.Generator | None = None,
     def clear(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return scene.segments_clear(a, b, margin)
 
-    out, i = [path[0]], 0
-    while i < len(path) - 1:
-        later = path[i + 1:]
-        ok = clear(np.broadcast_to(path[i], later.shape), later)
-        j = i + 1 + (int(np.nonzero(ok)[0].max()) if ok.any() else 0)
-        out.append(path[j])
-        i = j
-    path = np.array(out)
+    path = farthest_visible(path, clear)
     if rng is None or random_tries <= 0:
         return path
-    for _ in range(random_tries):
-        n = len(path)
-        if n <= 2:
-            break
-        seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
-        cum = np.concatenate([[0.0], np.cumsum(seg)])
-        s1, s2 = np.sort(rng.uniform(0.0, cum[-1], size=2))
-        i1 = min(int(np.searchsorted(cum, s1, side="right")) - 1, n - 2)
-        i2 = min(int(np.searchsorted(cum, s2, side="right")) - 1, n - 2)
-        if i1 == i2:
-            continue
-        p1 = path[i1] + (s1 - cum[i1]) / max(seg[i1], 1e-300) * (path[i1 + 1] - path[i1])
-        p2 = path[i2] + (s2 - cum[i2]) / max(seg[i2], 1e-300) * (path[i2 + 1] - path[i2])
-        if clear(p1[None], p2[None])[0]:
-            path = dedupe(np.vstack([path[: i1 + 1], p1, p2, path[i2 + 1:]]))
-    return path
-
-
+    return shortcut_chords(path, clear, rng, random_tries)

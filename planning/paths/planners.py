@@ -2,7 +2,9 @@
 
 The metaheuristics (``planning.optimisers``) minimise the penalised length of a path encoded
 as a flat vector (``planning.paths.encoding``); the ant colony searches the scene's slices
-itself; ``auto`` and ``rrt_star`` are ``planning.paths.auto``'s. The penalty only guides the
+itself; ``auto`` and ``rrt_star`` are ``planning.paths.auto``'s; a registered
+``planning.search.SamplingPlanner`` searches the scene's box through the sampling core
+(``planning.search``). The penalty only guides the
 search: ``plan_path`` never trusts it. It verifies the best path with the scene's exact
 segment check, returns an honest failure (no path, ``status`` ``collision``, a message naming
 the obstacle) when the path still collides, and otherwise shortens it by shortcutting (greedy,
@@ -25,7 +27,8 @@ from kinematics.numbers import finite_or_none
 
 from ..optimisers.aca import AntColony
 from ..optimisers.base import Problem, ProgressFn
-from ..registry import algorithm_names, make
+from ..registry import algorithm_names, lookup, make
+from ..search import STEP_FRACTION, BoxSpace, SamplingPlanner
 from ..status import PlanStatus
 from .auto import plan_auto, plan_rrt_star
 from .encoding import (
@@ -34,6 +37,7 @@ from .encoding import (
     PathEncoding,
     dedupe,
     path_length,
+    planning_slack,
     shortcut,
 )
 from .scene import Scene
@@ -157,8 +161,9 @@ def plan_path(
     a message.
     """
     t0 = time.perf_counter()
-    if algorithm not in ALGORITHMS:
-        raise FieldError("algorithm", f"algorithm must be one of {', '.join(ALGORITHMS)}, "
+    known = algorithm_names("path")  # planners registered after this module loaded too
+    if algorithm not in known:
+        raise FieldError("algorithm", f"algorithm must be one of {', '.join(known)}, "
                          f"got {algorithm!r}")
     start = scene.check_endpoint(start, "start")
     goal = scene.check_endpoint(goal, "goal")
@@ -175,6 +180,16 @@ def plan_path(
         raw = fn(scene, start, goal, rng, params=params, progress=progress)
         history, evaluations, extra = raw.history, raw.evaluations, raw.extra
         candidate, none_found = raw.path, raw.status
+    elif issubclass(lookup("path", algorithm).params, SamplingPlanner):
+        planner = make("path", algorithm, params)
+        margin = scene.safety_margin + planning_slack(scene)
+        space = BoxSpace(scene.lower, scene.upper, STEP_FRACTION * scene.diagonal,
+                         lambda a, b: scene.segments_clear(a, b, margin))
+        found = planner.search(space, start, goal, rng, progress=progress)
+        history, evaluations = found.history, int(found.stats.get("nodes", 0))
+        extra = {**found.stats, "message": f"{algorithm}: no path to the goal "
+                 f"({found.status.value})"} if found.path is None else dict(found.stats)
+        candidate, none_found = found.path, found.status
     else:
         k = int(params.pop("waypoints", DEFAULT_WAYPOINTS.get(algorithm, 5)))
         if k < 1:
@@ -188,8 +203,8 @@ def plan_path(
                              "params.max_evaluations must be at least 1")
         opt = make_optimiser(algorithm, params)
         if isinstance(opt, AntColony):  # searches the scene's slices, not a flat encoding
-            res = opt.plan_layers(scene, start, goal, rng, penalty=penalty,
-                                  max_evaluations=max_evals, progress=progress)
+            enc = PathEncoding(scene, start, goal, opt.n_slices, penalty)
+            res = opt.plan_layers(enc, rng, max_evaluations=max_evals, progress=progress)
             candidate = res.extra["path"]
         else:
             enc = PathEncoding(scene, start, goal, k, penalty)

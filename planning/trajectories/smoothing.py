@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,10 +33,8 @@ from .hermite import hermite7
 from .hydraulic import HydraulicLimits
 from .joint_path import JointPath
 from .limits_check import limit_ratios, stretch_to_limits
+from .topp_problem import ToppProblem
 from .trajectory import Trajectory
-
-if TYPE_CHECKING:
-    from .topp import _Problem
 
 __all__ = ["SmoothedProfile", "smooth_profile", "box_average"]
 
@@ -143,7 +140,7 @@ def _joint_rates(path: JointPath, state: np.ndarray):
     return d[0], qd, qdd, qddd
 
 
-def _lower_limits(p: _Problem, check_state: np.ndarray, ratios, tau: float) -> _Problem:
+def _lower_limits(p: ToppProblem, check_state: np.ndarray, ratios, tau: float) -> ToppProblem:
     """The problem with the bounds near samples over their limits lowered by the excess."""
     s_grid = p.s
     h = float(np.max(np.diff(s_grid)))
@@ -192,7 +189,7 @@ class SmoothedProfile:
     iterations: int
 
 
-def smooth_profile(path: JointPath, problem: _Problem, x, u, t, vel, acc, jerk,
+def smooth_profile(path: JointPath, problem: ToppProblem, x, u, t, vel, acc, jerk,
                    hydraulics: HydraulicLimits | None, solve) -> SmoothedProfile:
     """The time-optimal profile ``x, u, t`` on ``problem``'s grid made to keep the ``jerk``
     limits too (module docstring). ``solve(problem)`` re-solves a lowered problem: ``(x,

@@ -39,17 +39,18 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from enum import StrEnum
 
 import numpy as np
 
 from kinematics.errors import FieldError
+from kinematics.status import Status
 
 from .hermite import hermite5
 from .hydraulic import HydraulicLimits
 from .joint_path import JointPath
 from .limits_check import stretch_to_limits
 from .smoothing import smooth_profile
+from .topp_problem import ToppProblem
 from .trajectory import Limits, Trajectory
 
 __all__ = [
@@ -66,8 +67,8 @@ DEFAULT_GRID = 500
 X_CAP = 1e60
 
 
-class ToppStatus(StrEnum):
-    """How a parameterisation ended."""
+class ToppStatus(Status):
+    """How a parameterisation ended (a member of the status family, ``kinematics.status``)."""
 
     OK = "ok"
     #: No s(t) keeps the limits (e.g. the start or end speed asked for is too high).
@@ -157,21 +158,8 @@ def _rate(limits: Limits, name: str, dof: int) -> np.ndarray:
     return arr.copy()
 
 
-@dataclass(frozen=True)
-class _Problem:
-    """The discretised problem: grid ``s (N+1,)``, first-order bounds ``x_max (N+1,)`` and
-    second-order rows per stage ``A, B, lo, hi (N, R)``."""
-
-    s: np.ndarray
-    x_max: np.ndarray
-    A: np.ndarray
-    B: np.ndarray
-    lo: np.ndarray
-    hi: np.ndarray
-
-
 def _problem(path: JointPath, s: np.ndarray, vel: np.ndarray, acc: np.ndarray,
-             hydraulics: HydraulicLimits | None, scheme: str) -> _Problem:
+             hydraulics: HydraulicLimits | None, scheme: str) -> ToppProblem:
     right = path.derivatives(s[:-1], "right", 2)  # stage i at its start
     left = path.derivatives(s[1:], "left", 2)  # stage i at its end
     # First order at every grid point, from both sides of it.
@@ -195,7 +183,7 @@ def _problem(path: JointPath, s: np.ndarray, vel: np.ndarray, acc: np.ndarray,
     A, B = np.concatenate(A, axis=1), np.concatenate(B, axis=1)
     hi = np.broadcast_to(np.tile(acc[finite], len(A[0]) // max(int(finite.sum()), 1)),
                          A.shape).copy()
-    return _Problem(s, x_max, A, B, -hi, hi)
+    return ToppProblem(s, x_max, A, B, -hi, hi)
 
 
 @dataclass(frozen=True)
@@ -217,7 +205,7 @@ class _Stages:
     dn_l: tuple[np.ndarray, np.ndarray]
 
 
-def _stages(p: _Problem) -> _Stages:
+def _stages(p: ToppProblem) -> _Stages:
     A, B, lo, hi = p.A, p.B, p.lo, p.hi
     N = len(p.s) - 1
     scale = np.abs(A).max(initial=0.0)
@@ -339,7 +327,7 @@ def _trajectory(path: JointPath, s, x, u, t) -> Trajectory:
 
 
 # ---- the solver --------------------------------------------------------------------------
-def _solve(path: JointPath, p: _Problem, x0: float, end: tuple[float, float]
+def _solve(path: JointPath, p: ToppProblem, x0: float, end: tuple[float, float]
            ) -> tuple[ToppStatus, str, np.ndarray, np.ndarray]:
     st = _stages(p)
     K_lo, K_hi, empty = _controllable(st, p.x_max[-1], end)
@@ -417,7 +405,7 @@ def time_optimal(
         return ToppResult(status, message, path, s, x, u, t, traj.scaled(k) if k > 1 else traj,
                           float(t[-1]), stretch=k)
 
-    def solve(lowered: _Problem):
+    def solve(lowered: ToppProblem):
         st, _, xl, ul = _solve(path, lowered, 0.0, (0.0, 0.0))
         return (xl, ul, _times(s, xl)) if st is ToppStatus.OK else None
 

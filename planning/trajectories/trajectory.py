@@ -30,6 +30,13 @@ QUANTITIES = ("position", "velocity", "acceleration", "jerk")
 MAX_SAMPLES = 200_000
 #: Points per segment used to find peak values (on top of the polynomial's own extrema).
 PEAK_GRID = 64
+#: Joint acceleration limits of an arm's optimal timing when none are given: rad/s² for
+#: revolute joints, mm/s² for prismatic ones (a heavy hydraulic arm reaches 1 rad/s in 1 s).
+#: Shared by the arm paths (``planning.paths.arm``) and joint-space motion
+#: (``planning.motion``).
+ARM_ACCELERATION = (1.0, 500.0)
+#: Joint jerk limits likewise (rad/s³, mm/s³): the acceleration builds up in 0.2 s.
+ARM_JERK = (5.0, 2500.0)
 
 
 @dataclass(frozen=True)

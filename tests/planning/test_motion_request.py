@@ -123,3 +123,24 @@ def test_the_robot_field_must_be_ignored_explicitly():
     body = {"robot": "glt_palletizer", "start": Q0, "goal": {"q": Q1}}
     assert _loc(body) == ("robot",)
     assert parse_motion_request(body, MODEL, ignore=("robot",)).start.tolist() == Q0
+
+
+def test_a_read_request_plans_without_being_checked_again(monkeypatch):
+    """The request is checked once, where it is read: ``plan`` hands its values to the
+    planner (``plan_checked``) and never runs ``plan_motion``'s checks, and gives the answer
+    ``plan_motion`` gives for the same problem."""
+    from planning.collision import RobotCollisionModel
+    from planning.motion import planner
+
+    req = parse_motion_request({"start": Q0, "goal": {"q": Q1}, "seed": 3, "time_limit": 5,
+                                "trajectory": False}, MODEL)
+    checker = req.checker(RobotCollisionModel.from_model(MODEL))
+    direct = planner.plan_motion(checker, Q0, Q1, seed=3, time_limit=5, trajectory=False)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("plan_motion's checks ran again")
+
+    monkeypatch.setattr(planner, "plan_motion", refuse)
+    via_request = req.plan(checker)
+    assert via_request.status == direct.status == "ok"
+    np.testing.assert_array_equal(via_request.path, direct.path)

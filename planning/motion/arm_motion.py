@@ -45,17 +45,9 @@ from kinematics.fk import fk
 from kinematics.ik.position import REACH_TOL, position_dls, position_ik
 from kinematics.model import RobotModel
 from planning.collision import CollisionScene, RobotCollisionModel
-from planning.motion import (
-    DEFAULT_RESOLUTION,
-    PRISMATIC_STEP,
-    MotionChecker,
-    MotionStatus,
-    plan_motion,
-)
 
 from ..budget import ProgressFn
-from ..status import PlanStatus
-from .arm import (
+from ..paths.arm import (
     ARM_TIMINGS,
     DEFAULT_LINK_RADIUS,
     ArmPathResult,
@@ -65,8 +57,11 @@ from .arm import (
     arm_clearance,
     plan_arm_path,
 )
-from .planners import PathResult
-from .scene import Scene
+from ..paths.planners import PathResult
+from ..paths.scene import Scene
+from ..status import PlanStatus
+from .checker import DEFAULT_RESOLUTION, PRISMATIC_STEP, MotionChecker
+from .planner import MotionStatus, plan_motion
 
 __all__ = ["JOINT_SPACE_MODES", "DEFAULT_JOINT_TIME_LIMIT", "plan_arm_motion",
            "collision_scene_of", "point_configurations"]
