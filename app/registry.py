@@ -12,6 +12,7 @@ from kinematics.library import builtin_models
 from kinematics.model import RobotModel
 from kinematics.rigs import BUILTIN_RIG_IDS, Rig, builtin_rig
 
+from .collision_models import build_collision
 from .store import DuplicateError, Store, StoreMirror
 
 __all__ = ["RobotRegistry", "RobotConflictError", "ReadOnlyRobotError"]
@@ -23,14 +24,6 @@ log = logging.getLogger(__name__)
 #: no dot, so it cannot clash with one).
 COLLISION_FILE = "collision.model"
 
-
-def build_collision(robot: Any) -> bytes:
-    """Build the collision model of an imported robot (``ImportedRobot``) and answer it as
-    bytes (``RobotCollisionModel.to_bytes``); it takes seconds, so the service runs it in a
-    compute worker."""
-    from planning.collision import RobotCollisionModel
-
-    return RobotCollisionModel.from_imported(robot).to_bytes()
 
 
 class RobotConflictError(ValueError):

@@ -11,9 +11,11 @@ from kinematics.model import RobotModel
 
 from ..config import Settings
 from ..registry import RobotRegistry
+from ..scenes import SceneRegistry
 from .errors import http_error, not_found
 
-__all__ = ["SettingsDep", "RegistryDep", "RobotDep", "require_api_key"]
+__all__ = ["SettingsDep", "RegistryDep", "RobotDep", "ScenesDep", "get_scenes",
+           "require_api_key"]
 
 
 def get_settings(request: Request) -> Settings:
@@ -24,8 +26,13 @@ def get_registry(request: Request) -> RobotRegistry:
     return request.app.state.registry
 
 
+def get_scenes(request: Request) -> SceneRegistry:
+    return request.app.state.scenes
+
+
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 RegistryDep = Annotated[RobotRegistry, Depends(get_registry)]
+ScenesDep = Annotated[SceneRegistry, Depends(get_scenes)]
 
 
 def get_robot(

@@ -19,7 +19,8 @@ when the kick budget, the runs or stalls end the search. Each run has the time l
 own (one process shares one among its runs); a run stopped by it ends the search, as the
 time limit does in one process, and makes the answer depend on the machine's speed.
 
-Importing this module readies the compiled sequencing search (``oropt.warm_up``: numba's
+Importing this module readies the compiled sequencing search (``planning.warm``'s
+``sequencing`` part, ``oropt.warm_up``: numba's
 cache loaded in about 0.2 s, or the search compiled, some 15-25 s, the first time on a
 machine), so no job pays for it: the local job backend's workers fork from a server that
 imported this module.
@@ -63,9 +64,9 @@ __all__ = ["SequenceParams", "SequenceResult", "MultiarmParams", "MultiarmResult
 
 def _ready_sequencer() -> float:
     """Compile or load the sequencing search once per process; seconds it took."""
-    from planning.sequencing.oropt import warm_up
+    from planning.warm import warm_up
 
-    return warm_up()
+    return warm_up(["sequencing"]).total_seconds
 
 
 #: Seconds this process spent readying the compiled sequencing search at import.

@@ -8,8 +8,10 @@ A kind declares, side by side, its ``Params`` model (what ``POST /jobs`` accepts
 raises ``JobCancelled`` when the job has been cancelled and the backend can only stop it
 cooperatively. Optional hook: ``plot(params, result, robot) -> PNG bytes`` (``GET
 /jobs/{id}/plot``; ``robot`` is the job's robot model as the service knows it now, or None).
-Drawing in the viewer is a hook of the viewer itself (``web.results``): ``app`` does not
-import ``web``.
+Submission hooks (``JobKind``: ``prepare``, ``check``, ``needs_geometry``, ``keep_latest``)
+say what the job manager does for the kind beyond validating its params; the manager calls
+them for any kind and never tests a kind's name. Drawing in the viewer is a hook of the
+viewer itself (``web.results``): ``app`` does not import ``web``.
 
 What a job carries from submission to its worker (``JobPayload``): the validated params as
 JSON and the robot model the service resolved (so a worker needs no access to the service's
@@ -49,6 +51,7 @@ __all__ = [
     "JobCancelled",
     "JobResultError",
     "JobPayload",
+    "Submission",
     "Params",
     "Result",
     "Progress",
@@ -156,10 +159,30 @@ R = TypeVar("R", bound=Result)
 
 
 @dataclass(frozen=True)
+class Submission:
+    """What a kind's ``prepare`` hook may consult when a job is submitted: the service's
+    stored scenes (``app.scenes.SceneRegistry``; None when the service has none) and its
+    robots (``app.registry.RobotRegistry``)."""
+
+    scenes: Any
+    registry: Any
+
+
+@dataclass(frozen=True)
 class JobKind(Generic[P, R]):
     """A kind of job. ``needs_robot``: params name a robot whose model is attached;
     ``max_params_bytes``: the most JSON its params may take (413 above); ``plot``: draws a
-    succeeded job as PNG (None: the kind has no plot)."""
+    succeeded job as PNG (None: the kind has no plot).
+
+    Hooks the job manager calls by kind, never by name (each off by default):
+    ``prepare(params, submission) -> params`` rewrites the submitted JSON params after the
+    size checks and before validation, with what a worker cannot look up itself (a stored
+    scene filled in); it raises ``ParamsLimitError`` naming the field. ``check(params,
+    submission)`` checks the validated params model against the service's state (the
+    problems against the robot's joints) and raises the same. ``needs_geometry``:
+    an imported robot's description, collision model and meshes travel with the job
+    (``JobPayload.robot_files``). ``keep_latest``: the service serves from the latest
+    succeeded job of the kind per robot, so retention never prunes that one."""
 
     name: str
     params: type[P]
@@ -173,6 +196,14 @@ class JobKind(Generic[P, R]):
     #: ``run``. A kind with a graph runs it inline in ``run``, so its result is the same
     #: however the steps are spread.
     graph: Callable[[P], list[Step]] | None = None
+    prepare: Callable[[dict[str, Any], Submission], dict[str, Any]] | None = None
+    check: Callable[[P, Submission], None] | None = None
+    needs_geometry: bool = False
+    keep_latest: bool = False
+
+    def prepared(self, params: dict[str, Any], submission: Submission) -> dict[str, Any]:
+        """The submitted ``params`` after the kind's ``prepare`` hook (as given without one)."""
+        return params if self.prepare is None else self.prepare(params, submission)
 
     def steps(self, params: P) -> list[Step]:
         """The steps of a job with ``params``: its kind's graph, or ``run`` as one step."""

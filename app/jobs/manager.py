@@ -16,11 +16,7 @@ from ..registry import CollisionNotReady, RobotRegistry
 from ..store import JobRecord, Store
 from .caps import DEFAULT_TIME_LIMIT_S, ParamsLimitError, check_params
 from .catalog import KINDS, get_kind
-from .kinds import JobPayload
-from .motion_kinds import prepare_motion
-
-#: Kinds whose workers need an imported robot's geometry (``JobPayload.robot_files``).
-GEOMETRY_KINDS = frozenset({"motion"})
+from .kinds import JobPayload, Submission
 
 __all__ = ["JobManager", "JobParamsError", "QueueFullError", "JobStateError",
            "BackendUnavailable", "MAX_ATTEMPTS", "make_backend"]
@@ -33,9 +29,17 @@ MAX_ATTEMPTS = 3
 
 #: Seconds between two passes that prune finished jobs (retention) and compact the store.
 MAINTENANCE_EVERY_S = 60.0
-#: Kinds the service serves from after they end: the latest succeeded job of each per robot
-#: (``ik_train``: the learned IK) is never pruned, only deleted on request.
-SERVED_KINDS = ("ik_train",)
+
+
+def served_kinds() -> tuple[str, ...]:
+    """Kinds the service serves from after they end (``JobKind.keep_latest``; the learned IK
+    of ``model_kinds.IK_TRAIN``): the latest succeeded job of each per robot is never pruned,
+    only deleted on request."""
+    return tuple(name for name, kind in KINDS.items() if kind.keep_latest)
+
+
+#: ``served_kinds()`` of the catalog's kinds.
+SERVED_KINDS = served_kinds()
 
 
 class JobParamsError(ValueError):
@@ -88,10 +92,6 @@ def make_backend(store: Store, jobs_backend: str, workers: int, *,
                                cluster_deadline_s or DEFAULT_DEADLINE_S)
     raise ValueError("jobs_backend must be 'local', 'dask://HOST:PORT' or 'tls://HOST:PORT', "
                      f"got {jobs_backend!r}")
-
-
-#: Job kinds whose ``scene`` may name a stored scene.
-SCENE_KINDS = ("path", "path_compare")
 
 
 class JobManager:
@@ -159,7 +159,7 @@ class JobManager:
                 timespec="microseconds")
         pruned = self.store.prune_jobs(finished_before=before,
                                        keep=self.retention_count or None,
-                                       keep_latest=SERVED_KINDS)
+                                       keep_latest=served_kinds())
         if pruned:
             log.info("pruned %d finished job(s) past their retention", pruned)
         freed = self.store.compact()
@@ -214,25 +214,28 @@ class JobManager:
         elif time_limit_s > max_time_limit_s:
             raise JobParamsError(["time_limit_s"], f"at most {max_time_limit_s:g} s on this "
                                  f"service, got {time_limit_s:g}")
+        submission = Submission(self.scenes, self.registry)
         try:  # size first: an oversized submission costs no validation
             check_params(params, spec.max_params_bytes)
-            if kind == "motion":  # its stored scene and meshes inline, checked on the robot
-                params = prepare_motion(params, self.scenes, self.registry)
+            params = spec.prepared(params, submission)
         except ParamsLimitError as exc:
             raise JobParamsError(exc.loc, exc.message, exc.status) from None
-        if kind in SCENE_KINDS:
-            params = self._stored_scene(params)
         try:
             checked = spec.load_params(params)
         except ValidationError as exc:
             raise JobParamsError(*_params_error(exc.errors()[0])) from None
+        if spec.check is not None:
+            try:
+                spec.check(checked, submission)
+            except ParamsLimitError as exc:
+                raise JobParamsError(exc.loc, exc.message, exc.status) from None
         clean = checked.model_dump(mode="json")
         payload = JobPayload(params=clean)
         robot = spec.robot_id(checked)
         if spec.needs_robot or robot is not None:
             try:
                 payload.robot_model = self.registry.get(robot).to_dict()
-                if kind in GEOMETRY_KINDS:
+                if spec.needs_geometry:
                     payload.robot_files = self.registry.robot_files(robot)
             except KeyError:
                 raise JobParamsError(["params", "robot"], f"unknown robot '{robot}'",
@@ -252,29 +255,6 @@ class JobManager:
         if self.backend is not None:
             self.backend.notify()
         return job
-
-    def _stored_scene(self, params: dict[str, Any]) -> dict[str, Any]:
-        """Params whose ``scene`` names a stored scene (``"scene": "id"`` or ``{"id": ...}``)
-        with that scene's obstacles filled in (``path_kinds.scene_params``)."""
-        scene = params.get("scene")
-        if isinstance(scene, str):
-            scene = {"id": scene}
-        if not isinstance(scene, dict) or not isinstance(scene.get("id"), str):
-            return params
-        if "obstacles" in scene:
-            raise JobParamsError(["params", "scene", "obstacles"], "give a stored scene's id "
-                                 "or obstacles, not both")
-        try:
-            stored = self.scenes.get(scene["id"]) if self.scenes is not None else None
-        except KeyError:
-            stored = None
-        if stored is None:
-            raise JobParamsError(["params", "scene", "id"], f"unknown scene '{scene['id']}'",
-                                 status=404)
-        from .path_kinds import scene_params
-
-        return {**params, "scene": scene_params(stored, scene,
-                                                [params.get("start"), params.get("goal")])}
 
     def get(self, job_id: str) -> JobRecord:
         return self.store.get_job(job_id)
@@ -320,14 +300,14 @@ class JobManager:
         return job
 
     def learned_ik(self, robot_id: str):
-        """The learned IK of the latest succeeded ``ik_train`` job for ``robot_id`` (cached),
+        """The learned IK of the latest succeeded ``IK_TRAIN`` job for ``robot_id`` (cached),
         with that job's id; None if there is none; ``model_kinds.LearnedIKRefused`` if that
         model failed its validation (an older model that passed does not stand in: the latest
         training is the one asked for). One indexed query per call; the result of a job is
         read (and parsed as ``IKTrainResult``) only when it is newer than the cache."""
-        from .model_kinds import LearnedIKRefused, served_learned_ik
+        from .model_kinds import IK_TRAIN, LearnedIKRefused, served_learned_ik
 
-        latest = self.store.latest_job_for_robot("ik_train", robot_id)
+        latest = self.store.latest_job_for_robot(IK_TRAIN.name, robot_id)
         if latest is None:
             self._learned.pop(robot_id, None)  # its job was deleted: its model goes too
             return None

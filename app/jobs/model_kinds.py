@@ -24,7 +24,7 @@ from .kinds import (
 )
 
 __all__ = ["CalibrateParams", "CalibrateResult", "IKTrainParams", "IKTrainResult",
-           "RobotModelData", "LearnedIKRefused", "served_learned_ik",
+           "RobotModelData", "LearnedIKRefused", "served_learned_ik", "IK_TRAIN",
            "DEFAULT_MAX_MEAN_POSITION_ERROR"]
 
 #: Most measurements one calibration takes, and the most JSON its params may take: 10,000
@@ -331,10 +331,12 @@ def run_ik_train(params: IKTrainParams, progress: Progress) -> IKTrainResult:
         learned=LearnedIKData(**pick(LearnedIKData, learned.to_dict())))
 
 
-register(JobKind("ik_train", IKTrainParams, IKTrainResult, run_ik_train,
-                 "Train and validate the learned (RBF) IK; if it passes its quality gate, "
-                 "method 'learned' works on /ik",
-                 needs_robot=True))
+#: The kind whose latest succeeded job per robot serves ``/ik`` method 'learned'
+#: (``JobManager.learned_ik``); retention keeps that job.
+IK_TRAIN = register(JobKind("ik_train", IKTrainParams, IKTrainResult, run_ik_train,
+                            "Train and validate the learned (RBF) IK; if it passes its quality "
+                            "gate, method 'learned' works on /ik",
+                            needs_robot=True, keep_latest=True))
 
 
 class LearnedIKRefused(RuntimeError):

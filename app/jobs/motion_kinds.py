@@ -6,15 +6,16 @@ The body is that of ``POST /robots/{id}/motion`` plus ``robot``, with ``time_lim
 place of ``start`` and ``goal`` for a batch. The models here (goal, shared settings, one
 problem's result) are the route's too.
 
-At submission (``prepare_motion``, called by the job manager before the params are
-validated) the job gets everything its worker cannot look up: a stored scene named by id
-becomes its objects inline (stored meshes with their vertices), so the job's params record
-the geometry it planned in; and the params are checked against the robot (joint counts,
-goal pose), so a wrong problem is a 422 naming it, not a failed job. A worker has the
-robot's model, not the service's store: built-in and JSON robots plan with the collision
-model built from the model (a capsule per link); for an imported robot the job's payload
-carries its description, its stored collision model and its collision meshes
-(``JobPayload.robot_files``), rebuilt once per worker process.
+At submission (``prepare_motion``, the kind's ``prepare`` hook, called by the job manager
+before the params are validated) the job gets everything its worker cannot look up: a
+stored scene named by id becomes its objects inline (stored meshes with their vertices),
+so the job's params record the geometry it planned in; and the params are checked against
+the robot (joint counts, goal pose), so a wrong problem is a 422 naming it, not a failed
+job. A worker has the robot's model, not the service's store: built-in and JSON robots
+plan with the collision model built from the model (a capsule per link); for an imported
+robot (``needs_geometry``) the job's payload carries its description, its stored collision
+model and its collision meshes (``JobPayload.robot_files``), rebuilt once per worker
+process.
 
 A batch of more than ``MOTION_PART_PROBLEMS`` problems divides (``motion_graph``): that many
 problems per step, each step planning them in turn with a checker of its own, and a step
@@ -57,13 +58,13 @@ from planning.motion.request import (
     MAX_PROBLEMS,
     MAX_TIME_LIMIT_S,
     MotionRequest,
-    parse_motion_problems,
+    robot_problem,
 )
 
 from ..fields import JointVector, StrictModel, bounded_list, pose_type
 from .caps import ParamsLimitError
 from .graph import Ref, Step, run_inline
-from .kinds import MAX_SEED, JobKind, Params, Progress, Result, pick, register
+from .kinds import MAX_SEED, JobKind, Params, Progress, Result, Submission, pick, register
 
 __all__ = [
     "GoalIn",
@@ -81,6 +82,7 @@ __all__ = [
     "warm_up",
     "summarize",
     "prepare_motion",
+    "check_motion",
     "run_motion",
     "motion_graph",
     "MOTION_PART_PROBLEMS",
@@ -96,6 +98,10 @@ MAX_MOTION_PARAMS_BYTES = 4 * 1024 * 1024
 SCENE_KEYS = ("objects", "moveit", "name", "id")
 #: Longest scene id.
 MAX_SCENE_ID = 64
+
+#: The settings of a ``MotionRequest`` besides its endpoints and scene.
+_PLANNER_SETTINGS = ("planner", "seed", "resolution", "simplify", "self_collision",
+                     "margin", "trajectory")
 
 SceneIn = Annotated[str, Field(min_length=1, max_length=MAX_SCENE_ID)] | dict[str, Any] | None
 
@@ -119,6 +125,10 @@ class GoalIn(StrictModel):
                              "pose, 4x4 mm)")
         return self
 
+    def as_goal(self) -> dict[str, Any]:
+        """The goal as ``planning.motion.request.robot_problem`` takes it."""
+        return {"q": self.q} if self.q is not None else {"pose": self.pose}
+
 
 class MotionSettings(StrictModel):
     """What a motion request and a motion job share: the scene and the planner's settings."""
@@ -139,6 +149,11 @@ class MotionSettings(StrictModel):
                           description="mm: closer than this counts as a collision")
     trajectory: bool = Field(True, description="Time the path (time-optimal within the "
                              "robot's joint limits)")
+
+    def planner_settings(self) -> dict[str, Any]:
+        """The validated settings a ``MotionRequest`` takes (the scene is resolved apart;
+        ``time_limit``, whose bound differs, is the request's or the job's own field)."""
+        return {name: getattr(self, name) for name in _PLANNER_SETTINGS}
 
 
 class ProblemIn(StrictModel):
@@ -192,9 +207,18 @@ class MotionParams(Params, MotionSettings):
         return self
 
     def requests(self, model: Any) -> list[MotionRequest]:
-        """The problems checked against ``model`` (``FieldError`` naming the field)."""
-        body = self.model_dump(mode="json", exclude_none=True, exclude={"robot", "scene"})
-        return parse_motion_problems(body, model)
+        """The problems checked against ``model`` (``FieldError`` naming the field): the
+        params are valid already, so only what depends on the robot is checked
+        (``robot_problem``)."""
+        shared = {**self.planner_settings(), "time_limit": self.time_limit}
+        if self.problems is None:
+            return [robot_problem(model, self.start, self.goal.as_goal(), **shared)]
+        return [robot_problem(model, p.start, p.goal.as_goal(), loc=("problems", i),
+                              **{**shared,
+                                 "seed": shared["seed"] if p.seed is None else p.seed,
+                                 "time_limit": (shared["time_limit"] if p.time_limit is None
+                                                else p.time_limit)})
+                for i, p in enumerate(self.problems)]
 
 
 # ---- results ----------------------------------------------------------------------------
@@ -325,9 +349,9 @@ def warm_up(req: MotionRequest, collision_model: Any, scene: Any) -> None:
         return
     import numpy as np
 
-    from planning.motion import warm_up as warm_kernels
+    from planning.warm import warm_up as warm_kernels
 
-    warm_kernels()
+    warm_kernels(["kinematics", "motion"])  # the planner's compiled kernels, once per process
 
     checker = req.checker(collision_model, scene)
     a = np.clip(req.start, checker.lower, checker.upper)
@@ -469,12 +493,14 @@ def _inline_meshes(objects: Any, scenes: Any, loc: list) -> Any:
     return out
 
 
-def prepare_motion(params: dict[str, Any], scenes: Any, registry: Any) -> dict[str, Any]:
-    """A submitted motion job's params, ready for a worker: a stored scene (``"scene":
-    "id"``) filled in as ``{"id", "objects"}`` and stored meshes inline; then checked
-    against the robot. ``ParamsLimitError`` naming the field: 404 for an unknown scene, 413
-    when the params outgrow ``MAX_MOTION_PARAMS_BYTES``, 422 for a problem that does not
-    fit the robot or an imported robot. An unknown robot is left to the manager (404)."""
+def prepare_motion(params: dict[str, Any], submission: Submission) -> dict[str, Any]:
+    """The kind's ``prepare`` hook: a submitted motion job's params, ready for a worker
+    (``submission``: the service's scenes and robots): a stored scene (``"scene":
+    "id"``) filled in as ``{"id", "objects"}`` and stored meshes inline.
+    ``ParamsLimitError`` naming the field: 404 for an unknown scene, 413
+    when the params outgrow ``MAX_MOTION_PARAMS_BYTES``, 422 for a stored mesh that is not
+    there. The problems are checked against the robot once valid (``check_motion``)."""
+    scenes = submission.scenes
     scene = params.get("scene")
     if isinstance(scene, str):
         try:
@@ -494,25 +520,25 @@ def prepare_motion(params: dict[str, Any], scenes: Any, registry: Any) -> dict[s
             raise ParamsLimitError(["params", "scene"], f"the params with the scene's "
                                    f"objects take {size:,} bytes of JSON; a motion job takes "
                                    f"at most {MAX_MOTION_PARAMS_BYTES:,}", 413)
-    robot = params.get("robot")
+    return params
+
+
+def check_motion(params: MotionParams, submission: Submission) -> None:
+    """The kind's ``check`` hook: the validated params checked against the robot (joint
+    counts, goal poses), ``ParamsLimitError`` (422) naming the field. An unknown robot is
+    left to the manager (404)."""
     try:
-        model = registry.get(robot) if isinstance(robot, str) else None
+        model = submission.registry.get(params.robot)
     except KeyError:
-        return params
-    if model is None:
-        return params
+        return
     try:
-        checked = MotionParams.model_validate(params)
-    except ValidationError:
-        return params  # the manager reports the first error
-    try:
-        checked.requests(model)
+        params.requests(model)
     except FieldError as exc:
         raise ParamsLimitError(["params", *exc.loc], exc.message) from None
-    return params
 
 
 register(JobKind("motion", MotionParams, MotionJobResult, run_motion,
                  "Joint-space motion planning in a scene (RRT-Connect / RRT*), one problem "
                  "or a batch, every path verified", needs_robot=True,
-                 max_params_bytes=MAX_MOTION_PARAMS_BYTES, graph=motion_graph))
+                 max_params_bytes=MAX_MOTION_PARAMS_BYTES, graph=motion_graph,
+                 prepare=prepare_motion, check=check_motion, needs_geometry=True))

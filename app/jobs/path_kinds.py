@@ -8,7 +8,7 @@ obstacle, outside the bounds) by field validators that reuse ``planning.paths.sc
 
 ``robot`` is optional, so the kind is registered with ``needs_robot=False``; when the service
 attaches the robot's model it is used, else a built-in robot is looked up by id. A robot's
-move is planned by ``planning.paths.arm_motion.plan_arm_motion``: the tool path when the arm
+move is planned by ``planning.motion.arm_motion.plan_arm_motion``: the tool path when the arm
 can follow it, else (or with ``arm.joint_space: "always"``, or a goal configuration
 ``arm.q_goal``) a joint-space motion in the same obstacles; ``planner`` in the result says
 which. ``start`` and ``goal`` may be left out when ``arm.q_start`` / ``arm.q_goal`` give the
@@ -48,11 +48,12 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from planning.motion import PLANNERS as MOTION_PLANNERS
-from planning.paths.arm_motion import DEFAULT_JOINT_TIME_LIMIT, JOINT_SPACE_MODES
+from planning.motion.arm_motion import DEFAULT_JOINT_TIME_LIMIT, JOINT_SPACE_MODES
 from planning.registry import algorithm_names
 
 from ..fields import MAX_COORDINATE_MM, JointVector, StrictModel
 from ..fields import Point3 as Vec3
+from .caps import ParamsLimitError
 from .graph import Ref, Step, run_inline
 from .kinds import (
     MAX_SEED,
@@ -61,6 +62,7 @@ from .kinds import (
     Params,
     Progress,
     Result,
+    Submission,
     absent_when_none,
     pick,
     register,
@@ -68,7 +70,7 @@ from .kinds import (
 from .planner_params import PATH_KNOBS, check_batch_memory, knobs_schema, path_knobs
 
 __all__ = ["PathParams", "PathResult", "PathCompareParams", "PathCompareResult", "run_path",
-           "run_path_compare", "path_compare_graph", "compare_parts"]
+           "run_path_compare", "path_compare_graph", "compare_parts", "prepare_path"]
 
 #: The path planners: the ``path`` family of ``planning.registry``.
 Algorithm = Literal[algorithm_names("path")]  # type: ignore[valid-type]
@@ -116,9 +118,9 @@ class ObstacleIn(StrictModel):
 
     @model_validator(mode="after")
     def _complete(self):
-        """The fields this type needs, and no others (planning.paths.scene's checks, which name
-        the field within the obstacle)."""
-        from planning.paths.scene import obstacle_from_dict
+        """The fields this type needs, and no others (planning.geometry.obstacles' checks,
+        which name the field within the obstacle)."""
+        from planning.geometry.obstacles import obstacle_from_dict
 
         obstacle_from_dict(self.to_plain())
         return self
@@ -232,63 +234,19 @@ class ArmOptions(StrictModel):
         return self
 
 
-#: Largest number of boxes a stored point cloud becomes in a path scene.
-MAX_CLOUD_BOXES = 400
 #: Margin (mm) of the bounds derived from a stored scene, around its objects and endpoints.
 SCENE_BOUNDS_MARGIN_MM = 500.0
-
-
-def _cloud_boxes(P: np.ndarray, radius: float) -> list[dict[str, Any]]:
-    """Axis-aligned boxes covering balls of ``radius`` at points ``P``: one per occupied cell
-    of a grid coarse enough for at most ``MAX_CLOUD_BOXES`` cells."""
-    lo, hi = P.min(axis=0), P.max(axis=0)
-    cell = max(float(np.max(hi - lo)) / 4.0, radius, 1.0)
-    while True:
-        keys = np.floor((P - lo) / cell).astype(np.int64)
-        cells, inverse = np.unique(keys, axis=0, return_inverse=True)
-        if len(cells) <= MAX_CLOUD_BOXES:
-            break
-        cell *= 1.5
-    inverse = inverse.reshape(-1)
-    boxes = []
-    for k in range(len(cells)):
-        Q = P[inverse == k]
-        a, b = Q.min(axis=0) - radius, Q.max(axis=0) + radius
-        boxes.append({"type": "box", "lower": a.tolist(), "upper": b.tolist()})
-    return boxes
 
 
 def path_obstacles(objects: Any) -> list[dict[str, Any]]:
     """Obstacles of a point-path scene (spheres, axis-aligned boxes, capsules) covering a
     stored scene's objects (``planning.collision`` ``SceneObject``s), never smaller: spheres
     and capsules as they are, a box as its axis-aligned bounding box, a cylinder as the capsule
-    along its axis, a mesh as its bounding box, a point cloud as boxes over a coarse grid."""
+    along its axis, a mesh as its bounding box, a point cloud as boxes over a coarse grid
+    (at most 400): each shape's ``path_cover``."""
     out: list[dict[str, Any]] = []
-    for o in objects:
-        R, p = o.pose[:3, :3], o.pose[:3, 3]
-        if o.type == "sphere":
-            out.append({"type": "sphere", "center": p.tolist(), "radius": o.radius})
-        elif o.type == "box":
-            half = 0.5 * np.abs(R) @ np.asarray(o.size)
-            out.append({"type": "box", "lower": (p - half).tolist(),
-                        "upper": (p + half).tolist()})
-        elif o.type == "cylinder":
-            axis = R[:, 2] * (0.5 * o.height)
-            out.append({"type": "capsule", "a": (p - axis).tolist(), "b": (p + axis).tolist(),
-                        "radius": o.radius})
-        elif o.type == "capsule":
-            a = R @ np.asarray(o.a) + p
-            b = R @ np.asarray(o.b) + p
-            out.append({"type": "capsule", "a": a.tolist(), "b": b.tolist(),
-                        "radius": o.radius})
-        elif o.type == "mesh":
-            V = o.world_vertices()
-            lo, hi = V.min(axis=0), V.max(axis=0)
-            pad = 1e-3  # mm: a flat mesh (a wall of two triangles) still gets a box
-            out.append({"type": "box", "lower": (lo - pad).tolist(),
-                        "upper": (hi + pad).tolist()})
-        elif o.type == "points":
-            out.extend(_cloud_boxes(o.world_points(), float(o.radius)))
+    for o in objects:  # each shape's own cover (planning.geometry's ShapeKind.path_cover)
+        out.extend(o.kind.path_cover(o))
     return out
 
 
@@ -334,6 +292,30 @@ def scene_params(stored: Any, given: dict[str, Any], endpoints: list) -> dict[st
         m = SCENE_BOUNDS_MARGIN_MM
         out["bounds"] = [(P.min(axis=0) - m).tolist(), (P.max(axis=0) + m).tolist()]
     return out
+
+
+def prepare_path(params: dict[str, Any], submission: Submission) -> dict[str, Any]:
+    """The ``prepare`` hook of ``path`` and ``path_compare``: params whose ``scene`` names a
+    stored scene (``"scene": "id"`` or ``{"id": ...}``) with that scene's obstacles filled
+    in (``scene_params``); ``ParamsLimitError`` for an unknown scene (404) or a scene given
+    both ways (422)."""
+    scene = params.get("scene")
+    if isinstance(scene, str):
+        scene = {"id": scene}
+    if not isinstance(scene, dict) or not isinstance(scene.get("id"), str):
+        return params
+    if "obstacles" in scene:
+        raise ParamsLimitError(["params", "scene", "obstacles"], "give a stored scene's id "
+                               "or obstacles, not both")
+    scenes = submission.scenes
+    try:
+        stored = scenes.get(scene["id"]) if scenes is not None else None
+    except KeyError:
+        stored = None
+    if stored is None:
+        raise ParamsLimitError(["params", "scene", "id"], f"unknown scene '{scene['id']}'", 404)
+    return {**params, "scene": scene_params(stored, scene,
+                                            [params.get("start"), params.get("goal")])}
 
 
 def _endpoint(v, info: ValidationInfo):
@@ -459,8 +441,8 @@ class PathResult(Result):
 def run_path(params: PathParams, progress: Progress) -> PathResult:
     """Plan one path; with ``robot``, for that robot's tool (reach, whole-arm clearance,
     joint trajectory, cylinder lengths)."""
+    from planning.motion.arm_motion import plan_arm_motion
     from planning.paths import plan_path
-    from planning.paths.arm_motion import plan_arm_motion
 
     scene = params.scene.to_scene()
 
@@ -623,7 +605,8 @@ def run_path_compare(params: PathCompareParams, progress: Progress) -> PathCompa
 
 register(JobKind("path", PathParams, PathResult, run_path,
                  "Obstacle-avoiding path (paper 000's planners); optional robot tool path "
-                 "with whole-arm clearance, joint trajectory and cylinder lengths"))
+                 "with whole-arm clearance, joint trajectory and cylinder lengths",
+                 prepare=prepare_path))
 register(JobKind("path_compare", PathCompareParams, PathCompareResult, run_path_compare,
                  "Every path planner over many seeds (paper 000, Tables 3-4)",
-                 graph=path_compare_graph))
+                 graph=path_compare_graph, prepare=prepare_path))

@@ -25,6 +25,7 @@ from kinematics.model import RobotModel
 from kinematics.numbers import finite_or_none
 
 from ...responses import FastJSONRoute
+from ..common import joint_rows
 from ..cylinder_schemas import (
     CylindersInverseRequest,
     CylindersInverseResponse,
@@ -35,7 +36,6 @@ from ..cylinder_schemas import (
 )
 from ..deps import RobotDep
 from ..errors import invalid
-from .kinematics import joint_rows
 
 router = APIRouter(prefix="/robots/{robot_id}", tags=["cylinders"],
                    route_class=FastJSONRoute)

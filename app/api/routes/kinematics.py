@@ -46,6 +46,7 @@ from ...responses import (
     validate_body,
     wants_npy,
 )
+from ..common import joint_rows
 from ..errors import conflict, http_error, invalid, not_found, too_large
 from ..schemas import (
     MAX_FK_CONFIGS,
@@ -85,26 +86,6 @@ async def get_robot(
 
 
 RobotDep = Annotated[RobotModel, Depends(get_robot)]
-
-
-def joint_rows(model: RobotModel, q: list, field: str = "q") -> tuple[np.ndarray, bool]:
-    """Body ``q`` (one configuration or a list) -> ``(N, dof)`` array and whether it was one."""
-    single = len(q) == 0 or not isinstance(q[0], list)
-    rows = [q] if single else q
-    try:  # one numpy pass when every row has the robot's length (the usual case)
-        arr = np.asarray(rows, dtype=float)
-    except ValueError:  # ragged rows: find the one at fault below
-        arr = None
-    if arr is not None and arr.ndim == 2 and arr.shape[1] == model.dof:
-        return arr, single
-    for k, row in enumerate(rows):
-        if len(row) != model.dof:
-            loc = [field] if single else [field, k]
-            raise invalid(
-                loc, f"expected {model.dof} joint values for robot '{model.id}', got {len(row)}"
-            )
-    # Finite and within ±MAX_JOINT_VALUE already: the request types check every value.
-    return np.asarray(rows, dtype=float).reshape(len(rows), model.dof), single
 
 
 #: Above these sizes a request is computed in a worker process (``app.compute``).

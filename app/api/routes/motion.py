@@ -3,8 +3,8 @@
 ``POST /robots/{id}/motion`` plans one problem for up to ``MAX_SYNC_TIME_LIMIT_S`` seconds
 in a compute worker (planning holds the interpreter for its whole time limit, so never in
 the API's process). The robot's collision model and the scene are found as for collision
-queries (``collision.collision_entry``, ``collision.resolve_scene``) and kept by the worker
-between requests. Longer searches and batches are ``motion`` jobs.
+queries (``app.collision_models``) and kept by the worker between requests. Longer
+searches and batches are ``motion`` jobs.
 """
 
 from __future__ import annotations
@@ -14,14 +14,15 @@ from typing import Any
 from fastapi import APIRouter, Request, Response
 from pydantic import Field
 
-from planning.motion.request import parse_motion_request
+from planning.motion.request import MotionRequest, robot_problem
 
+from ...collision_models import worker_cached
 from ...compute import ComputePool, encode_json
 from ...fields import JointVector
 from ...jobs.motion_kinds import GoalIn, MotionOut, MotionSettings, motion_answer, warm_up
 from ...responses import FastJSONRoute
+from ..common import collision_entry, resolve_scene
 from ..deps import RegistryDep, RobotDep
-from .collision import _cached, collision_entry, resolve_scene
 
 router = APIRouter(prefix="/robots", tags=["motion"], route_class=FastJSONRoute)
 
@@ -36,6 +37,12 @@ class MotionRequestBody(MotionSettings):
     time_limit: float = Field(MAX_SYNC_TIME_LIMIT_S, gt=0, le=MAX_SYNC_TIME_LIMIT_S,
                               description="s of planning; longer searches are motion jobs")
 
+    def request(self, model: Any) -> MotionRequest:
+        """The problem, checked against the robot ``model`` (``FieldError`` naming the
+        field): the body is valid already, so only what depends on the robot is checked."""
+        return robot_problem(model, self.start, self.goal.as_goal(),
+                             **self.planner_settings(), time_limit=self.time_limit)
+
 
 class MotionAnswer(MotionOut):
     robot: str
@@ -45,8 +52,8 @@ class MotionAnswer(MotionOut):
 def _plan(cm: Any, cm_token: str | None, scene: Any, scene_token: str | None, model: Any,
           req: Any) -> bytes:
     """Run in a compute worker: plan ``req`` with the (kept) collision model and scene."""
-    cm = _cached(cm_token, cm)
-    scene = _cached(scene_token, scene) if scene is not None else None
+    cm = worker_cached(cm_token, cm)
+    scene = worker_cached(scene_token, scene) if scene is not None else None
     names = [j.name for j in model.joints]
     warm_up(req, cm, scene)
     result = req.plan(req.checker(cm, scene), model)
@@ -60,8 +67,7 @@ async def plan_motion_now(robot: RobotDep, registry: RegistryDep, body: MotionRe
                           request: Request) -> Response:
     """Plan a collision-free joint-space move from ``start`` to ``goal`` (joint values or a
     tool pose) in a scene; every status but ``ok`` is an answer too (200), not an error."""
-    req = parse_motion_request(body.model_dump(mode="json", exclude={"scene"}), robot,
-                               max_time_limit=MAX_SYNC_TIME_LIMIT_S)
+    req = body.request(robot)
     scene, scene_token = resolve_scene(request, body.scene)
     cm, cm_token = await collision_entry(request, registry, robot.id)
     pool: ComputePool = request.app.state.compute

@@ -14,6 +14,7 @@ from kinematics.ik import available_methods
 from kinematics.model import MAX_DOF, RobotModel
 from kinematics.urdf import imported_to_archive, imported_to_urdf, to_urdf
 
+from ...collision_models import start_build
 from ...compute import ComputePool
 from ...registry import ReadOnlyRobotError, RobotConflictError
 from ...responses import FastJSONRoute, loads_json
@@ -294,7 +295,5 @@ async def import_robot_route(
     # Its collision model is built now, in a compute worker, and stored: the first collision
     # query finds it ready (or waits for this build).
     if request.app.state.settings.prebuild_collision:
-        from .collision import start_collision_build
-
-        start_collision_build(request.app, id)
+        start_build(request.app.state, id)
     return robot.model.to_dict()

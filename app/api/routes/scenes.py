@@ -8,7 +8,8 @@ from fastapi import APIRouter, Depends, File, Form, Path, Query, Request, Respon
 
 from ...jobs.caps import ParamsLimitError, check_params
 from ...responses import FastJSONRoute, loads_json
-from ...scenes import MeshInUseError, SceneConflictError, SceneRegistry
+from ...scenes import MeshInUseError, SceneConflictError
+from ..deps import ScenesDep
 from ..errors import conflict, http_error, invalid, not_found, too_large
 
 router = APIRouter(tags=["scenes"], route_class=FastJSONRoute)
@@ -23,13 +24,6 @@ MAX_SCENE_DEPTH = 16
 MAX_MESH_FILE_BYTES = 32 * 1024 * 1024
 
 IdPath = Annotated[str, Path(pattern=r"^[A-Za-z0-9_-]{1,64}$")]
-
-
-def get_scenes(request: Request) -> SceneRegistry:
-    return request.app.state.scenes
-
-
-ScenesDep = Annotated[SceneRegistry, Depends(get_scenes)]
 
 
 async def json_body(request: Request, cap: int, depth: int) -> Any:

@@ -1,5 +1,8 @@
 """Tell the 3D viewer what to show: a robot (or rig) in a configuration, a finished job or the
-answer of a motion request, and a stored scene."""
+answer of a motion request, and a stored scene.
+
+The viewer is whichever ``app.viewer.ViewerPort`` the program that started the service handed
+it (``python -m kinoplan``: ``web.viewer.Viewer``); this module never imports ``web``."""
 
 from __future__ import annotations
 
@@ -8,6 +11,7 @@ from fastapi import APIRouter, Request
 from kinematics.errors import FieldError
 
 from ...responses import FastJSONRoute
+from ...viewer import JobNotReady, ViewerPort
 from ..deps import RegistryDep
 from ..errors import conflict, http_error, invalid, unavailable
 from ..schemas import ViewerShowRequest
@@ -20,9 +24,7 @@ def viewer_show(request: Request, registry: RegistryDep, body: ViewerShowRequest
     """Show a robot in a configuration, a finished job's result (``problem``: one of a
     batch's) or a motion answer, and/or a stored scene (``"scene": null`` clears it), in the
     3D viewer."""
-    from web.viewer import JobNotReady
-
-    viewer = request.app.state.viewer
+    viewer: ViewerPort | None = request.app.state.viewer
     if viewer is None:
         raise unavailable("viewer", "the 3D viewer is not running (started with --no-viewer)")
     has_scene = "scene" in body.model_fields_set
