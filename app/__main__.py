@@ -1,4 +1,9 @@
-"""``python -m app``: start the API (and the 3D viewer unless ``--no-viewer``).
+"""``python -m app``: start the API alone, without the 3D viewer.
+
+``python -m kinoplan`` starts the API and the 3D viewer (the viewer sits above the service and
+``app`` never imports it): it parses the same flags with ``parse_args`` and serves with
+``serve``, handing it the viewer to start. Here ``--viewer-port``, ``--no-viewer`` and
+``--allowed-origins`` are accepted and have no effect.
 
 The flags are ``app.config.Settings``'s fields, one each (``data_dir`` -> ``--data-dir``,
 its help the field's description). Every flag falls back to the environment variable
@@ -20,6 +25,7 @@ from pydantic import ValidationError
 from pydantic.fields import FieldInfo
 
 from .config import Settings
+from .viewer import ViewerStarter
 
 log = logging.getLogger("kinoplan")
 
@@ -65,27 +71,38 @@ def _add_flag(p: argparse.ArgumentParser, name: str, info: FieldInfo, current: A
                    help=f"{help_text} (env {env}; default {default})", **kwargs)
 
 
-def build_parser(env: Settings | None = None) -> argparse.ArgumentParser:
+#: What ``python -m app --help`` says it does.
+DESCRIPTION = ("Start the kinoplan API alone, without the 3D viewer: `python -m kinoplan` "
+               "starts both. --viewer-port, --no-viewer and --allowed-origins have no effect "
+               "here.")
+
+
+def build_parser(env: Settings | None = None, *, prog: str = "python -m app",
+                 description: str = DESCRIPTION, epilog: str | None = None,
+                 ) -> argparse.ArgumentParser:
     """The argument parser: one flag per ``Settings`` field, defaults from ``env`` (by
-    default the settings the environment gives)."""
+    default the settings the environment gives). ``prog``, ``description`` and ``epilog``
+    are what ``--help`` prints (``python -m kinoplan`` passes its own)."""
     env = Settings() if env is None else env
-    p = argparse.ArgumentParser(prog="python -m app", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog=prog, description=description, epilog=epilog)
     for name, info in Settings.model_fields.items():
         _add_flag(p, name, info, getattr(env, name))
     return p
 
 
-def parse_args(argv: list[str] | None = None) -> Settings:
+def parse_args(argv: list[str] | None = None, *, prog: str = "python -m app",
+               description: str = DESCRIPTION, epilog: str | None = None) -> Settings:
     """Settings from the command line over the environment over the defaults; a value a
-    field rejects (e.g. ``--port 0``) is a usage error naming its flag."""
+    field rejects (e.g. ``--port 0``) is a usage error naming its flag. ``prog``,
+    ``description`` and ``epilog`` as ``build_parser``."""
     try:
         env = Settings()
     except ValidationError as exc:  # a bad KINOPLAN_* variable: name it, no traceback
         err = exc.errors()[0]
         name = f"KINOPLAN_{str(err['loc'][0]).upper()}" if err["loc"] else "KINOPLAN_*"
-        print(f"python -m app: error: {name}: {err['msg']}", file=sys.stderr)
+        print(f"{prog}: error: {name}: {err['msg']}", file=sys.stderr)
         raise SystemExit(2) from None
-    p = build_parser(env)
+    p = build_parser(env, prog=prog, description=description, epilog=epilog)
     args = vars(p.parse_args(argv))
     try:
         return Settings(**args)
@@ -96,7 +113,11 @@ def parse_args(argv: list[str] | None = None) -> Settings:
         raise  # p.error exits; keeps type checkers content
 
 
-def main(argv: list[str] | None = None) -> int:
+def serve(settings: Settings, start_viewer: ViewerStarter | None = None) -> int:
+    """Serve the API with ``settings`` until stopped; the exit status (1: the store cannot
+    be opened). ``start_viewer`` (``python -m kinoplan`` hands ``web``'s) starts the 3D
+    viewer beside it, in this process, unless ``settings.no_viewer``; without it the API
+    runs alone and ``POST /viewer/show`` answers 503."""
     import uvicorn
 
     from .main import create_app
@@ -104,20 +125,14 @@ def main(argv: list[str] | None = None) -> int:
     from .store import StoreError
 
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    settings = parse_args(argv)
     try:
         api = create_app(settings)
     except StoreError as exc:  # one line an operator can act on, not a traceback
         print(f"kinoplan: {exc}", file=sys.stderr)
         return 1
-    if not settings.no_viewer:
-        from web.viewer import Viewer
-
+    if start_viewer is not None and not settings.no_viewer:
         # Same process as the API: the viewer sees the same robots and jobs (app.state).
-        # Its port checks Origin, and the API key when one is set (web.gate).
-        api.state.viewer = Viewer.start(settings.host, settings.viewer_port, api.state,
-                                        api_key=settings.api_key,
-                                        allowed_origins=settings.allowed_origins)
+        api.state.viewer = start_viewer(settings, api.state)
         log.info("3D viewer on http://%s:%d%s", settings.host, api.state.viewer.port,
                  "/?key=<API key>" if settings.api_key else "")
     try:
@@ -128,6 +143,11 @@ def main(argv: list[str] | None = None) -> int:
         if api.state.viewer is not None:
             api.state.viewer.stop()
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m app``: the API alone (``kinoplan.__main__.main`` adds the viewer)."""
+    return serve(parse_args(argv))
 
 
 if __name__ == "__main__":

@@ -66,28 +66,28 @@ def _call(fn: Callable[..., Any], *args: Any) -> Any:
         raise
 
 
+#: The compiled kernels (``planning.warm.PARTS``) a worker's requests run: kinematics and the
+#: motion planner (``POST /robots/{id}/motion``); the sequencing search runs only in jobs.
+KERNELS = ["kinematics", "motion"]
+
+
 def _warm() -> None:
-    """Run once in each new worker: import what requests use."""
+    """Run once in each new worker: import what requests use, and start loading the
+    compiled kernels they run in the background (``planning.warm``)."""
     import importlib
 
     for name in PRELOAD:
         importlib.import_module(name)
-    from kinematics.fast import start_warm_up
+    from planning.warm import start_warm_up
 
-    start_warm_up()
-    from planning.motion import start_warm_up as start_motion_warm_up
-
-    start_motion_warm_up()
+    start_warm_up(KERNELS)
 
 
 def _ready() -> None:
     """In a worker: return once its compiled kernels are loaded (``prestart``)."""
-    from kinematics.fast import warm_up
+    from planning.warm import warm_up
 
-    warm_up()
-    from planning.motion import warm_up as motion_warm_up
-
-    motion_warm_up()
+    warm_up(KERNELS)
 
 
 class ComputePool:

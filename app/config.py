@@ -14,8 +14,9 @@ __all__ = ["Settings"]
 class Settings(BaseSettings):
     """Everything the service reads at start-up.
 
-    Each field is also a flag of ``python -m app`` (``app.__main__``: ``data_dir`` is
-    ``--data-dir``, its help the field's ``description``) and reads ``KINOPLAN_<NAME>``;
+    Each field is also a flag of ``python -m kinoplan`` and ``python -m app``
+    (``app.__main__``: ``data_dir`` is ``--data-dir``, its help the field's
+    ``description``) and reads ``KINOPLAN_<NAME>``;
     a field with ``repr=False`` is a secret whose value is never shown.
     """
 

@@ -109,11 +109,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         api.state.jobs.start()
         if settings.prestart_compute:
             api.state.compute.prestart()
-        # Compiled kinematics kernels load (or, on a new machine, compile) in the background;
-        # until then calls take the numpy path, with the same answers.
-        from kinematics.fast import start_warm_up
+        # The compiled kinematics kernels load (or, on a new machine, compile) in the
+        # background; until then calls take the numpy path, with the same answers. This
+        # process runs no motion plan (compute workers and job steps load every kernel),
+        # and importing the job kinds loaded the sequencing search (planning.warm).
+        from planning.warm import start_warm_up
 
-        start_warm_up()
+        start_warm_up(["kinematics"])
         try:
             yield
         finally:

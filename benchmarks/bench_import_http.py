@@ -55,7 +55,7 @@ def free_port() -> int:
 
 def start_service(data_dir: str, port: int) -> subprocess.Popen:
     proc = subprocess.Popen(
-        [sys.executable, "-m", "app", "--port", str(port), "--no-viewer", "--data-dir",
+        [sys.executable, "-m", "kinoplan", "--port", str(port), "--no-viewer", "--data-dir",
          data_dir], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         env={**os.environ, "PYTHONPATH": str(ROOT)})
     for _ in range(300):

@@ -1,7 +1,7 @@
 """REST batch kinematics over real HTTP: orjson answers and ``.npy`` answers against the
 standard library's JSON encoder, in one run.
 
-The script starts the service twice as a user would (``python -m app --no-viewer`` on a
+The script starts the service twice as a user would (``python -m kinoplan --no-viewer`` on a
 loopback port, data in a temporary directory): once with ``KINOPLAN_JSON_ENCODER=stdlib``
 (answers encoded by ``json.dumps`` after ``tolist`` and bodies decoded by ``json.loads``, as
 the service did before) and once as it ships (orjson both ways). Against each, with httpx:
@@ -50,14 +50,14 @@ def free_port() -> int:
 
 
 class Server:
-    """``python -m app`` on a loopback port, stopped on exit."""
+    """``python -m kinoplan`` on a loopback port, stopped on exit."""
 
     def __init__(self, encoder: str) -> None:
         self.port = free_port()
         self.dir = tempfile.TemporaryDirectory(prefix="kinoplan-bench-rest-")
         env = dict(os.environ, KINOPLAN_JSON_ENCODER=encoder)
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "app", "--port", str(self.port), "--no-viewer",
+            [sys.executable, "-m", "kinoplan", "--port", str(self.port), "--no-viewer",
              "--data-dir", self.dir.name], cwd=ROOT, env=env, stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL)
         self.client = httpx.Client(base_url=f"http://127.0.0.1:{self.port}", timeout=120)

@@ -80,7 +80,7 @@ if TYPE_CHECKING:
 
 # Only the standard library at import time: every process the local backend starts for a
 # step (multiprocessing's forkserver) runs this file again as ``__mp_main__`` before the step,
-# which ``python -m app`` does not cost; the service's and the kinds' modules are imported
+# which ``python -m kinoplan`` does not cost; the service's and the kinds' modules are imported
 # where they are used.
 
 ROOT = Path(__file__).resolve().parents[1]

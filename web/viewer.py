@@ -55,6 +55,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from app.store import StoreError
+from app.viewer import JobNotReady
 from kinematics.ik import solve_ik
 from kinematics.ik.result import IKResult
 from kinematics.model import RobotModel
@@ -90,15 +91,6 @@ TICK_S = 1.0 / 30.0
 ROBOTS_REFRESH_S = 1.0
 #: How often (s) a running workspace job is polled.
 POLL_S = 0.2
-
-
-class JobNotReady(RuntimeError):
-    """The job exists but has not succeeded; ``status`` says where it is."""
-
-    def __init__(self, job_id: str, status: str, error: str | None = None) -> None:
-        why = f": {error}" if error else ""
-        super().__init__(f"job {job_id} is {status}; only a succeeded job can be shown{why}")
-        self.status = status
 
 
 class ServiceState(Protocol):

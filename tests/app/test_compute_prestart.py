@@ -19,11 +19,15 @@ def _processes(pool: ComputePool) -> list:
 
 
 def _loaded() -> tuple[int, bool]:
+    """In a worker: its pid, and whether the kernels its requests run (``KERNELS`` of
+    ``planning.warm``, the motion planner's included) have loaded."""
     import os
 
-    from planning.motion import warm
+    from app.compute import KERNELS
+    from planning import warm
+    from planning.motion import warm as motion_warm
 
-    return os.getpid(), warm._done
+    return os.getpid(), motion_warm._done and set(KERNELS) <= set(warm._seconds)
 
 
 def test_the_service_starts_its_workers_by_default():

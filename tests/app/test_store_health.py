@@ -401,7 +401,7 @@ def _free_port() -> int:
 def test_start_on_an_unusable_store_exits_with_one_line(tmp_path, make, words):
     make(tmp_path / STORE_FILENAME)
     proc = subprocess.run(
-        [sys.executable, "-m", "app", "--no-viewer", "--port", str(_free_port()),
+        [sys.executable, "-m", "kinoplan", "--no-viewer", "--port", str(_free_port()),
          "--data-dir", str(tmp_path)],
         cwd=REPO, capture_output=True, text=True, timeout=60,
     )

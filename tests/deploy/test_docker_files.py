@@ -45,7 +45,10 @@ COMPOSE = ROOT / "docker-compose.yml"
 DOCKERIGNORE = ROOT / ".dockerignore"
 
 #: What the image needs from the tree, and nothing else.
-IMAGE_SOURCES = {"pyproject.toml", "README.md", "app", "kinematics", "planning", "web"}
+IMAGE_SOURCES = {"pyproject.toml", "README.md", "app", "kinematics", "kinoplan", "planning",
+                 "web"}
+#: ENV variables of the image that name a path inside the container.
+CONTAINER_PATHS = {"NUMBA_CACHE_DIR"}
 START_TIMEOUT_S = 60
 PIP_TIMEOUT_S = 900
 #: The image's install runs only when asked: it downloads the dependencies.
@@ -138,10 +141,31 @@ def test_dockerfile_base_user_ports_health_and_entry(dockerfile):
     probe = healthcheck_argv(checks[0])
     assert probe[0] == "python" and "/health" in " ".join(probe)
     assert not any(word in {"curl", "wget"} for word in probe), "slim images have no curl"
-    assert entrypoint_argv(dockerfile) == ["python", "-m", "app", "--host", "0.0.0.0"]
+    assert entrypoint_argv(dockerfile) == ["python", "-m", "kinoplan", "--host", "0.0.0.0"]
     assert any(k == "ENTRYPOINT" for k in kinds), "flags must append to an ENTRYPOINT"
     installs = [a for k, a in dockerfile if k == "RUN" and "pip install" in a]
     assert installs == ['pip install --no-cache-dir ".[dask]"']
+
+
+def test_dockerfile_builds_every_kernel_into_a_cache_the_service_user_owns(dockerfile):
+    """The image runs the one warm-up command after installing, with numba's cache in a
+    directory of its own that it then hands to the unprivileged user: numba writes (and so
+    reads) a cache only where it may write, and site-packages belongs to root."""
+    env = {k: v for kind, a in dockerfile if kind == "ENV" for k, v in env_pairs(a).items()}
+    cache = env.get("NUMBA_CACHE_DIR")
+    assert cache and cache.startswith("/") and not cache.startswith("/data"), cache
+    runs = [(i, a) for i, (k, a) in enumerate(dockerfile) if k == "RUN"]
+    install_at = next(i for i, a in runs if "pip install" in a)
+    warm = [(i, a) for i, a in runs if "python -m kinoplan warm-up" in a]
+    assert len(warm) == 1, "one warm-up step: python -m kinoplan warm-up"
+    warm_at, command = warm[0]
+    assert warm_at > install_at, "the warm-up runs the installed package"
+    assert command.startswith("cd / "), "from the installed package, not the sources"
+    user = next(a for k, a in dockerfile if k == "USER").split(":")[0]
+    assert re.search(rf'chown -R {user}(:{user})? "?\$NUMBA_CACHE_DIR"?', command), command
+    env_at = next(i for i, (k, a) in enumerate(dockerfile)
+                  if k == "ENV" and "NUMBA_CACHE_DIR" in env_pairs(a))
+    assert env_at < warm_at, "NUMBA_CACHE_DIR must be set before the warm-up"
 
 
 def test_dockerfile_copies_only_the_package_sources(dockerfile):
@@ -185,6 +209,7 @@ def test_dockerignore_drops_local_state_and_keeps_sources():
                 "kinematics/ik/__pycache__", ".pytest_cache", "kinoplan.egg-info"):
         assert ignored(rel, patterns), rel
     for rel in ("pyproject.toml", "README.md", "app/main.py", "app/jobs/kinds.py",
+                "kinoplan/__main__.py",
                 "kinematics/robots/pile_driver.json", "planning/__init__.py", "web/viewer.py"):
         assert not ignored(rel, patterns), rel
 
@@ -366,6 +391,12 @@ class Image:
         base = self.workdir if not container_path.startswith("/") else self.fs
         return base / container_path.lstrip("/")
 
+    def set_env(self, args: str) -> None:
+        """An ENV line; numba's cache directory, a container path, moves under ``fs`` so
+        the emulation never writes outside its temp folder."""
+        for key, value in env_pairs(args).items():
+            self.env[key] = str(self.path(value)) if key in CONTAINER_PATHS else value
+
     def copy(self, args: str) -> None:
         sources, dest = copy_sources(args)
         target = self.path(dest)
@@ -391,7 +422,7 @@ class Image:
                 self.workdir = self.path(args)
                 self.workdir.mkdir(parents=True, exist_ok=True)
             elif kind == "ENV":
-                self.env.update(env_pairs(args))
+                self.set_env(args)
             elif kind == "COPY":
                 self.copy(args)
             elif kind == "RUN" and "pip install" in args:
@@ -405,7 +436,7 @@ class Image:
                 self.workdir = self.path(args)
                 self.workdir.mkdir(parents=True, exist_ok=True)
             elif kind == "ENV":
-                self.env.update(env_pairs(args))
+                self.set_env(args)
             elif kind == "COPY":
                 self.copy(args)
             elif kind == "RUN" and "pip install" in args:
@@ -417,10 +448,12 @@ class Image:
 
 
 def package_dirs(root: Path, include: list[str]) -> list[str]:
-    """Top-level folders of ``root`` that pyproject's ``packages.find`` ``include`` patterns
-    pick (``app*`` picks ``app`` and everything below it)."""
+    """Top-level packages (folders with an ``__init__.py``, as setuptools finds them) of
+    ``root`` that pyproject's ``packages.find`` ``include`` patterns pick (``app*`` picks
+    ``app`` and everything below it; ``kinoplan*`` not the ``kinoplan.egg-info`` folder)."""
     return sorted(d.name for d in root.iterdir()
-                  if d.is_dir() and any(fnmatch.fnmatchcase(d.name, p) for p in include))
+                  if (d / "__init__.py").is_file()
+                  and any(fnmatch.fnmatchcase(d.name, p) for p in include))
 
 
 def test_build_context_holds_what_the_install_packs(dockerfile, tmp_path):
@@ -434,7 +467,7 @@ def test_build_context_holds_what_the_install_packs(dockerfile, tmp_path):
     setuptools_cfg = project["tool"]["setuptools"]
     include = setuptools_cfg["packages"]["find"]["include"]
     packages = package_dirs(ROOT, include)
-    assert {"app", "kinematics", "planning", "web"} <= set(packages)
+    assert {"app", "kinematics", "kinoplan", "planning", "web"} <= set(packages)
     assert package_dirs(context, include) == packages
     patterns = ignore_patterns()
     for package in packages:
@@ -463,7 +496,7 @@ def image(tmp_path_factory, dockerfile) -> Image:
 def test_image_installs_starts_and_passes_its_healthcheck(image, dockerfile, tmp_path):
     assert not (image.workdir / "app").exists(), "runs from the installed package"
     site = next((image.venv / "lib").glob("python3*/site-packages"))
-    for package in ("app", "app/jobs", "kinematics/robots", "planning", "web"):
+    for package in ("app", "app/jobs", "kinematics/robots", "kinoplan", "planning", "web"):
         assert (site / package).is_dir(), f"{package} missing from the installed wheel"
     port, viewer_port = free_port(), free_port()
     env = clean_env(image.venv, {**image.env, "KINOPLAN_PORT": str(port)})

@@ -45,13 +45,13 @@ def free_port() -> int:
 
 
 class Service:
-    """``python -m app`` in a subprocess on a free port, with its own data dir."""
+    """``python -m kinoplan`` in a subprocess on a free port, with its own data dir."""
 
     def __init__(self, data_dir: Path, *args: str, env: dict | None = None) -> None:
         self.port = free_port()
         self.url = f"http://127.0.0.1:{self.port}"
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "app", "--port", str(self.port), "--no-viewer",
+            [sys.executable, "-m", "kinoplan", "--port", str(self.port), "--no-viewer",
              "--data-dir", str(data_dir), *args],
             cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
             env={**os.environ, **(env or {})}, start_new_session=True,

@@ -1,4 +1,4 @@
-"""Every process ``python -m app`` starts dies with it, also when it is SIGKILLed
+"""Every process ``python -m kinoplan`` starts dies with it, also when it is SIGKILLed
 (``app.lifetime``).
 
 The service runs in a session of its own (``Service``) while an imported robot's collision

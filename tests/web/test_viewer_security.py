@@ -20,10 +20,11 @@ import viser
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from app.__main__ import main, parse_args
+from app.__main__ import parse_args
 from app.config import Settings
 from app.main import create_app
 from kinematics.workspace import MAX_SAMPLES
+from kinoplan.__main__ import main
 from web import gate as gate_module
 from web.gate import (
     GATE_HEADER,
