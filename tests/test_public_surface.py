@@ -4,16 +4,18 @@
   same object as in its module), ship ``py.typed``, and stay light to import;
 * ``kinematics`` and ``planning`` never import ``app`` or ``web``, counting imports inside
   functions;
-* no import cycle among the modules of ``app``, ``kinematics``, ``planning`` and ``web``
-  (imports inside functions count, and so do literal module names handed to
-  ``importlib.import_module``; ``if TYPE_CHECKING:`` blocks, which never run, do not);
-* the metaheuristics never import a path planner (the planners build on them);
+* no import cycle among the modules of the project's packages (imports inside functions
+  count, and so do literal module names, such as those the algorithm catalogue hands to the
+  registry; ``if TYPE_CHECKING:`` blocks, which never run, do not);
+* the floors declared in ``pyproject.toml`` (``[tool.kinoplan] floors``): no module imports a
+  unit beside or above its own, and every module belongs to a declared unit;
 * every module of ``kinematics`` and ``planning`` imports on its own, first.
 """
 
 from __future__ import annotations
 
 import ast
+import functools
 import importlib
 import subprocess
 import sys
@@ -23,7 +25,9 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("app", "kinematics", "planning", "web")
+#: The project's packages; ``kinoplan`` (the composition root) when it is there.
+PACKAGES = tuple(p for p in ("app", "kinematics", "planning", "web", "kinoplan")
+                 if (ROOT / p).is_dir())
 LIBRARIES = ("kinematics", "planning")
 
 #: Names the README and the docs use from the top level.
@@ -81,7 +85,9 @@ def _reexports(path: Path) -> tuple[dict[str, str], dict[str, str], set[str]]:
 
     def collect(nodes, into):
         for node in nodes:
-            if isinstance(node, ast.ImportFrom) and node.level == 1:
+            # ``from . import module`` runs a module for its effect (``planning.catalog``
+            # registers the built-in algorithms); it re-exports nothing.
+            if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module:
                 for alias in node.names:
                     assert alias.asname == alias.name, (
                         f"{path}: re-export as 'from .{node.module} import {alias.name} as "
@@ -153,10 +159,14 @@ def _type_checking(test: ast.expr) -> bool:
         isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
 
 
-def imported_names(module: str) -> set[str]:
+@functools.cache  # parsed once per run: several tests walk every module's imports
+def imported_names(module: str) -> frozenset[str]:
     """Absolute names ``module`` imports anywhere in its file (functions included): ``a.b``
     for ``import a.b``, ``a.b`` and ``a.b.c`` for ``from a.b import c``, relative imports
-    resolved; and the literal module names of a file that calls ``import_module``."""
+    resolved; and the literal module names of a file that calls ``import_module`` or hands
+    names to the registry's ``register`` (which loads them by ``import_module`` on first use).
+    A module named for another process to import (the forkserver's preload) is not an
+    import of this one."""
     path = MODULES[module]
     tree = ast.parse(path.read_text())
     package = module.split(".") if path.name == "__init__.py" else module.split(".")[:-1]
@@ -180,6 +190,8 @@ def imported_names(module: str) -> set[str]:
                 source = node.module or ""
             out.add(source)
             out.update(f"{source}.{alias.name}" for alias in node.names)
+            if source.endswith("registry") and any(a.name == "register" for a in node.names):
+                dynamic = True  # it names modules for the registry to load
         elif isinstance(node, ast.Attribute | ast.Name) and "import_module" in (
                 getattr(node, "attr", None), getattr(node, "id", None)):
             dynamic = True
@@ -191,7 +203,7 @@ def imported_names(module: str) -> set[str]:
     visit(tree)
     if dynamic:
         out |= strings & set(MODULES)
-    return out
+    return frozenset(out)
 
 
 def import_graph() -> dict[str, set[str]]:
@@ -278,8 +290,7 @@ def test_libraries_never_import_app_or_web(package):
 def test_the_graph_sees_imports_inside_functions():
     graph = import_graph()
     assert "planning.paths.compare" in graph["app.jobs.path_kinds"]  # inside run_path_compare
-    assert "planning.optimisers.aca" in graph["planning.registry"]  # by importlib
-    assert "planning.paths.encoding" in graph["planning.optimisers.aca"]
+    assert "planning.optimisers.aca" in graph["planning.catalog"]  # named for importlib
     assert "planning.optimisers.aca" in graph["planning.paths.planners"]
     cycle = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
     assert strongly_connected(cycle) == [{"a", "b", "c"}]
@@ -293,18 +304,6 @@ def test_no_import_cycles():
            if not any(component <= known for known in KNOWN_CYCLES)]
     assert not new, "import cycles: " + "; ".join(
         " -> ".join(a_cycle(graph, component)) for component in new)
-
-
-def test_optimisers_never_import_path_planners():
-    """The path planners import the optimisers, never the reverse: an optimiser may use the
-    shared lower modules of ``planning.paths`` (the scene, the encoding) and nothing above."""
-    lower = {"planning.paths", "planning.paths.encoding", "planning.paths.scene"}
-    graph = import_graph()
-    offenders = sorted(
-        f"{module} imports {name}"
-        for module in MODULES if module.startswith("planning.optimisers")
-        for name in graph[module] if name.startswith("planning.paths") and name not in lower)
-    assert not offenders, offenders
 
 
 @pytest.mark.slow
@@ -326,3 +325,66 @@ def test_every_library_module_imports_first():
     done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
                           text=True, timeout=120, check=True)
     assert done.stdout.strip() == "[]", done.stdout
+
+
+# ---- the floors ------------------------------------------------------------------------
+FLOORS: list[list[str]] = tomllib.loads(
+    (ROOT / "pyproject.toml").read_text())["tool"]["kinoplan"]["floors"]
+
+
+def unit_of(module: str, floors: list[list[str]]) -> tuple[str, int] | None:
+    """The declared unit ``module`` belongs to (the longest name it is or starts with) and
+    that unit's floor (0 at the bottom); None if no unit covers it."""
+    best = None
+    for level, units in enumerate(floors):
+        for unit in units:
+            if (module == unit or module.startswith(unit + ".")) and (
+                    best is None or len(unit) > len(best[0])):
+                best = (unit, level)
+    return best
+
+
+def floor_offences(graph: dict[str, set[str]], floors: list[list[str]]) -> list[str]:
+    """Every import of a unit beside or above the importing module's own."""
+    found = []
+    for module in sorted(graph):
+        here = unit_of(module, floors)
+        for name in sorted(graph[module]):
+            there = unit_of(name, floors)
+            if here and there and there[0] != here[0] and there[1] >= here[1]:
+                side = "beside" if there[1] == here[1] else "above"
+                found.append(f"{module} ({here[0]}, floor {here[1]}) imports {name} "
+                             f"({there[0]}, {side} it)")
+    return found
+
+
+def test_the_floor_rule_finds_imports_up_and_across():
+    floors = [["low"], ["mid.a", "mid.b"], ["mid"], ["top"]]
+    graph = {"top.x": {"mid.a.y", "low.z"}, "mid.a.y": {"mid.a.w", "low.z", "mid.b.v"},
+             "mid.b.v": {"top.x"}, "mid": {"mid.a.y"}, "low.z": set(), "mid.a.w": set()}
+    assert unit_of("mid.a.y", floors) == ("mid.a", 1)
+    assert unit_of("mid.c", floors) == ("mid", 2)
+    assert unit_of("other", floors) is None
+    assert floor_offences(graph, floors) == [
+        "mid.a.y (mid.a, floor 1) imports mid.b.v (mid.b, beside it)",
+        "mid.b.v (mid.b, floor 1) imports top.x (top, above it)"]
+
+
+def test_the_floors_are_declared_once_and_cover_every_module():
+    units = [unit for floor in FLOORS for unit in floor]
+    assert len(units) == len(set(units)), "a unit declared twice"
+    assert set(PACKAGES) <= set(units)
+    for module in MODULES:
+        unit = unit_of(module, FLOORS)
+        assert unit is not None, f"{module} is on no floor"
+        # A package split into floors declares each of its subpackages: a new one is placed
+        # on purpose, not by default at the package's own (top) floor.
+        split = any(u.startswith(unit[0] + ".") for u in units)
+        assert not split or module == unit[0], (
+            f"{module}: declare its floor in pyproject.toml [tool.kinoplan] floors")
+
+
+@pytest.mark.slow
+def test_no_import_runs_up_or_across_a_floor():
+    offences = floor_offences(import_graph(), FLOORS)
+    assert not offences, "\n".join(offences)
