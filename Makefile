@@ -4,6 +4,11 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
+# Python may keep compiled bytecode (and pytest its rewritten test modules) in __pycache__:
+# an environment that forbids it makes every process of a test run (the pytest workers,
+# each service and job process the tests start) compile the project's sources again.
+unexport PYTHONDONTWRITEBYTECODE
+
 .PHONY: install run test test-fast kernels lint bench clean chromium fuzz
 
 $(STAMP): pyproject.toml
@@ -14,8 +19,9 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
+# The API (:8000) and the 3D viewer (:8080).
 run: $(STAMP)
-	$(BIN)/python -m app
+	$(BIN)/python -m kinoplan
 
 # The browser test drives Debian's Chromium (not Playwright's download); CI runs as root.
 chromium:
@@ -27,35 +33,42 @@ chromium:
 # leaves out the slow, browser, cluster and paper tests: under 2 minutes, for development.
 FAST := not slow and not browser and not cluster and not paper
 
-# The API fuzz (marked slow) runs in a pytest of its own, after: schemathesis gives its 40
+# The API fuzz (marked slow) runs in pytests of its own, after: schemathesis gives its 40
 # operations one node id (under pytest 9.2), and pytest-xdist would run only one of them;
-# test-fast does not collect it (building its cases takes some 9 s).
+# test-fast does not collect it (building its cases takes some 9 s). Two pytests share the
+# operations out (KINOPLAN_FUZZ_SHARD 0/2 and 1/2), one a core; the second's output is
+# printed after the first's.
 FUZZ := tests/app/test_fuzz_api.py
+FUZZ_HALF := $(BIN)/python -m pytest -q -p no:xdist -p no:cacheprovider $(FUZZ)
 
 # The numba kernels compiled (a fresh clone: about 2 minutes of CPU, once) or loaded (3 s)
 # before the test workers start: otherwise each worker, and each process the tests start,
 # compiles them at the same time, some inside tests that have a time limit.
+# One command (planning.warm) readies every kernel, as the Docker image does; here in two
+# processes, one a core (the motion kernels take about as long as the other two parts).
 kernels: $(STAMP)
-	$(BIN)/python -c "from kinematics.fast import warm_up as k; k(); \
-	from planning.motion import warm_up as m; m(); \
-	from planning.sequencing.oropt import warm_up as s; s()"
+	@$(BIN)/python -m kinoplan warm-up motion & pid=$$!; \
+	$(BIN)/python -m kinoplan warm-up kinematics sequencing; a=$$?; wait $$pid; b=$$?; \
+	exit $$((a | b))
 
 # The cluster tests (real services, Dask clusters, kills, CPU and timing measured) run alone
 # after the parallel run: beside another worker's load, a fresh Dask cluster kept a job's
 # steps on one worker and deadlines slipped.
 test: $(STAMP) chromium kernels
-	$(BIN)/python -m ruff check app kinematics planning web tests benchmarks tools
+	$(BIN)/python -m ruff check app kinematics planning web kinoplan tests benchmarks tools
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=25 -m "not cluster" \
 		--ignore=$(FUZZ)
-	$(BIN)/python -m pytest -q -p no:xdist --durations=10 -m cluster
-	$(BIN)/python -m pytest -q -p no:xdist $(FUZZ)
+	$(BIN)/python -m pytest -q -p no:xdist --durations=10 -m cluster --ignore=$(FUZZ)
+	@log=$$(mktemp); KINOPLAN_FUZZ_SHARD=1/2 $(FUZZ_HALF) >$$log 2>&1 & \
+	KINOPLAN_FUZZ_SHARD=0/2 $(FUZZ_HALF); a=$$?; wait $$!; b=$$?; \
+	cat $$log; rm -f $$log; exit $$((a | b))
 
 test-fast: $(STAMP) kernels
-	$(BIN)/python -m ruff check app kinematics planning web tests benchmarks tools
+	$(BIN)/python -m ruff check app kinematics planning web kinoplan tests benchmarks tools
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=10 -m "$(FAST)" --ignore=$(FUZZ)
 
 lint: $(STAMP)
-	$(BIN)/python -m ruff check app kinematics planning web tests benchmarks tools
+	$(BIN)/python -m ruff check app kinematics planning web kinoplan tests benchmarks tools
 
 # The long fuzz of the whole API (tools/fuzz.py: about 5 minutes on 2 cores): fails on any
 # 5xx or answer off its response schema, or if fewer than 2,000 requests were sent.

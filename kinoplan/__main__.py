@@ -44,10 +44,16 @@ def warm_up_main(argv: list[str]) -> int:
         description="Load every compiled kernel of the service and its job kinds from "
                     "numba's cache (NUMBA_CACHE_DIR, or __pycache__ beside the sources), "
                     "compiling the ones it lacks, and print the seconds each part took.")
-    p.parse_args(argv)
-    from planning.warm import warm_up
+    from planning.warm import PARTS, warm_up
 
-    report = warm_up()
+    p.add_argument("parts", nargs="*", metavar="PART",
+                   help=f"only these parts ({', '.join(PARTS)}; default: all), e.g. to "
+                        "compile them in two processes at once on a fresh machine")
+    args = p.parse_args(argv)
+    unknown = [name for name in args.parts if name not in PARTS]
+    if unknown:
+        p.error(f"unknown part {unknown[0]!r}; known: {', '.join(PARTS)}")
+    report = warm_up(args.parts or None)
     parts = ", ".join(f"{name} {seconds:.1f} s" if report.compiled[name] else f"{name} off"
                       for name, seconds in report.seconds.items())
     print(f"compiled kernels: {parts} (total {report.total_seconds:.1f} s)")

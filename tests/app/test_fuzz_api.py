@@ -34,6 +34,9 @@ from app.config import Settings
 from app.main import create_app
 
 MAX_EXAMPLES = int(os.environ.get("KINOPLAN_FUZZ_EXAMPLES", "12"))  # tools/fuzz.py: more
+#: ``k/n``: fuzz only the operations whose place in the document's order is k modulo n, so
+#: that n pytest processes share the operations out (``make test`` runs two, one a core).
+SHARD = os.environ.get("KINOPLAN_FUZZ_SHARD", "0/1")
 SEED = 20240611
 
 CONFIG = schemathesis.Config.from_dict({
@@ -93,6 +96,18 @@ DOCUMENT, BUILTIN_DOF, JOB_KINDS = _read_app()
 CYLINDERS = _cylinder_strokes()
 BUILTINS = sorted(BUILTIN_DOF)
 schema = schemathesis.openapi.from_dict(DOCUMENT, config=CONFIG)
+
+
+def _shard(spec: str) -> set[str]:
+    """The labels (``POST /robots/{robot_id}/fk``) of the operations of shard ``k/n``."""
+    k, n = (int(v) for v in spec.split("/"))
+    if not 0 <= k < n:
+        raise ValueError(f"KINOPLAN_FUZZ_SHARD: {spec!r} is not k/n with 0 <= k < n")
+    labels = [result.ok().label for result in schema.get_all_operations()]
+    return set(labels[k::n])
+
+
+SHARD_LABELS = _shard(SHARD)
 
 
 def _pick(options: list, *key: Any):
@@ -207,7 +222,7 @@ def api(tmp_path):
 
 
 def _ensure_viewer(case, api) -> None:
-    """/viewer operations get the real viewer (as ``python -m app`` starts it, on a free
+    """/viewer operations get the real viewer (as ``python -m kinoplan`` starts it, on a free
     loopback port) instead of the 503 of ``--no-viewer``."""
     if case.path.startswith("/viewer") and api.state.viewer is None:
         from web.viewer import Viewer
@@ -225,8 +240,12 @@ def _cancel_accepted_job(case, response, api) -> None:
         cancel.Case(path_parameters={"job_id": job_id}).call(app=api)
 
 
+# After the hook: the clone keeps it. ``schema`` itself keeps every operation (the cancel).
+fuzzed = schema.include(lambda ctx: ctx.operation.label in SHARD_LABELS)
+
+
 @pytest.mark.slow
-@schema.parametrize()
+@fuzzed.parametrize()
 # Every number a request carries is bounded, so no computation may overflow: a numeric
 # warning in any handler fails the case.
 @pytest.mark.filterwarnings("error::RuntimeWarning")

@@ -97,7 +97,7 @@ def test_kinoplan_starts_the_viewer_it_hands_the_service(tmp_path, monkeypatch):
 def test_warm_up_command_reports_each_part(monkeypatch, capsys):
     from planning import warm
 
-    monkeypatch.setattr(warm, "warm_up", lambda: warm.WarmUpReport(
+    monkeypatch.setattr(warm, "warm_up", lambda parts=None: warm.WarmUpReport(
         {"kinematics": 0.3, "motion": 1.0, "sequencing": 0.5},
         {"kinematics": True, "motion": True, "sequencing": True}))
     assert root.main(["warm-up"]) == 0
@@ -105,13 +105,30 @@ def test_warm_up_command_reports_each_part(monkeypatch, capsys):
     assert out.strip() == ("compiled kernels: kinematics 0.3 s, motion 1.0 s, sequencing 0.5 s "
                            "(total 1.8 s)")
 
-    monkeypatch.setattr(warm, "warm_up", lambda: warm.WarmUpReport(
+    monkeypatch.setattr(warm, "warm_up", lambda parts=None: warm.WarmUpReport(
         {"kinematics": 0.0, "motion": 0.0, "sequencing": 0.1},
         {"kinematics": False, "motion": False, "sequencing": True}))
     assert root.main(["warm-up"]) == 1
     captured = capsys.readouterr()
     assert "kinematics off, motion off, sequencing 0.1 s" in captured.out
     assert "KINOPLAN_JIT=0" in captured.err
+
+
+def test_warm_up_command_takes_parts(monkeypatch, capsys):
+    """``warm-up motion`` readies only that part (make kernels runs two at once); an unknown
+    part is a usage error naming it."""
+    from planning import warm
+
+    asked = []
+    monkeypatch.setattr(warm, "warm_up", lambda parts=None: asked.append(parts) or
+                        warm.WarmUpReport({"motion": 1.0}, {"motion": True}))
+    assert root.main(["warm-up", "motion"]) == 0
+    assert asked == [["motion"]]
+    assert "compiled kernels: motion 1.0 s" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as stop:
+        root.main(["warm-up", "graphics"])
+    assert stop.value.code == 2
+    assert "unknown part 'graphics'" in capsys.readouterr().err
 
 
 def test_warm_up_parts_are_checked():
