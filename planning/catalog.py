@@ -9,49 +9,53 @@ name is used.
 
 from __future__ import annotations
 
+from typing import Any
+
 from .registry import AutoPlannerParams, RRTStarParams, ShortcutParams, register
 
 __all__: list[str] = []
 
-for _name, _module, _cls, _preset, _summary in (
-    ("wolfpack_improved", "planning.optimisers.wolfpack_improved", "ImprovedWolfPack", None,
+#: Every built-in algorithm, in the order each family lists it: (family, name, its parameter
+#: dataclass or ``(module, class name)`` loaded on first use, preset, shared knobs, summary).
+BUILTIN: tuple[tuple[str, str, Any, str | None, type | None, str], ...] = (
+    ("path", "wolfpack_improved",
+     ("planning.optimisers.wolfpack_improved", "ImprovedWolfPack"), None, None,
      "improved wolf pack: adaptive steps, Levy-flight wandering (paper 000)"),
-    ("wolfpack", "planning.optimisers.wolfpack", "WolfPack", None,
+    ("path", "wolfpack", ("planning.optimisers.wolfpack", "WolfPack"), None, None,
      "wolf pack algorithm (paper 000's baseline)"),
-    ("ga", "planning.optimisers.ga", "GeneticAlgorithm", "paper_000",
+    ("path", "ga", ("planning.optimisers.ga", "GeneticAlgorithm"), "paper_000", None,
      "real-coded genetic algorithm with paper 000's settings"),
-    ("aca", "planning.optimisers.aca", "AntColony", None,
+    ("path", "aca", ("planning.optimisers.aca", "AntColony"), None, None,
      "ant colony algorithm on a layered grid (paper 000's baseline)"),
-    ("afsa", "planning.optimisers.afsa", "FishSwarm", None,
+    ("path", "afsa", ("planning.optimisers.afsa", "FishSwarm"), None, None,
      "artificial fish swarm algorithm (paper 000's baseline)"),
-):
-    register("path", _name, (_module, _cls), preset=_preset, summary=_summary)
-register("path", "rrt_star", RRTStarParams, shared=ShortcutParams,
-         summary="RRT* with exact edge checks")
-register("path", "auto", AutoPlannerParams, shared=ShortcutParams,
-         summary="near-shortest path: visibility graph, shortcutting and tightening (ours)")
-
-for _kind, _name, _module, _cls, _summary in (
-    ("sequencer", "iga", "planning.sequencing.iga", "IGA",
+    ("path", "rrt_star", RRTStarParams, None, ShortcutParams, "RRT* with exact edge checks"),
+    ("path", "auto", AutoPlannerParams, None, ShortcutParams,
+     "near-shortest path: visibility graph, shortcutting and tightening (ours)"),
+    ("sequencer", "iga", ("planning.sequencing.iga", "IGA"), None, None,
      "improved genetic algorithm (paper 002)"),
-    ("sequencer", "aco", "planning.sequencing.aco", "ACO",
+    ("sequencer", "aco", ("planning.sequencing.aco", "ACO"), None, None,
      "ant colony hole sequencer, Ant System (paper 002's baseline)"),
-    ("sequencer", "aga", "planning.sequencing.aga", "AGA",
+    ("sequencer", "aga", ("planning.sequencing.aga", "AGA"), None, None,
      "adaptive genetic algorithm (paper 002's baseline)"),
-    ("sequencer", "auto", "planning.sequencing.auto", "Auto",
+    ("sequencer", "auto", ("planning.sequencing.auto", "Auto"), None, None,
      "near-optimal order: exact on small faces, iterated 2-opt/Or-opt above (ours)"),
-    ("move_planner", "iapf", "planning.drilling.iapf", "IAPF",
+    ("move_planner", "iapf", ("planning.drilling.iapf", "IAPF"), None, None,
      "improved artificial potential field in joint space (paper 002)"),
-    ("move_planner", "rrt", "planning.drilling.rrt", "RRTConnect",
+    ("move_planner", "rrt", ("planning.drilling.rrt", "RRTConnect"), None, None,
      "joint-space RRT-Connect (paper 002's baseline)"),
-    ("tuner", "hgso", "planning.optimisers.hgso", "HGSO",
+    ("tuner", "hgso", ("planning.optimisers.hgso", "HGSO"), None, None,
      "Henry gas solubility optimisation (paper 003)"),
-    ("tuner", "pso", "planning.optimisers.pso", "PSO", "particle swarm optimisation (paper 003)"),
-    ("tuner", "ga", "planning.optimisers.ga", "GeneticAlgorithm",
+    ("tuner", "pso", ("planning.optimisers.pso", "PSO"), None, None,
+     "particle swarm optimisation (paper 003)"),
+    ("tuner", "ga", ("planning.optimisers.ga", "GeneticAlgorithm"), None, None,
      "real-coded genetic algorithm with paper 003's settings"),
-    ("tuner", "aco", "planning.optimisers.acor", "ACOR",
+    ("tuner", "aco", ("planning.optimisers.acor", "ACOR"), None, None,
      "ACO_R, ant colony for continuous variables (paper 003)"),
-    ("tuner", "gwo", "planning.optimisers.gwo", "GWO", "grey wolf optimiser (paper 003)"),
-):
-    register(_kind, _name, (_module, _cls), summary=_summary)
-del _kind, _name, _module, _cls, _preset, _summary
+    ("tuner", "gwo", ("planning.optimisers.gwo", "GWO"), None, None,
+     "grey wolf optimiser (paper 003)"),
+)
+
+for _family, _name, _params, _preset, _shared, _summary in BUILTIN:
+    register(_family, _name, _params, preset=_preset, shared=_shared, summary=_summary)
+del _family, _name, _params, _preset, _shared, _summary
