@@ -77,6 +77,20 @@ def _payload(payload: dict) -> dict:
     return payload
 
 
+_WORKER_CLIENT = threading.Lock()
+
+
+def worker_client() -> Any:
+    """The worker's client, made by one thread at a time: a worker's threads share one client,
+    made on first use, and two steps starting at once on a fresh worker would both make it
+    (Dask's worker does not guard that) -- one of them then fails on the half-made
+    connection."""
+    from distributed import get_client
+
+    with _WORKER_CLIENT:
+        return get_client()
+
+
 def run_step(queue_name: str, job_key: str, index: int, kind: str, payload: dict, fn: Any,
              args: tuple, final: bool) -> Any:
     """What a Dask worker runs: one step of a job in a child process, with its start and
@@ -84,6 +98,7 @@ def run_step(queue_name: str, job_key: str, index: int, kind: str, payload: dict
     the job's cancel event watched."""
     from distributed import Queue
 
+    worker_client()
     queue = Queue(queue_name)
     try:
         queue.put(("start", job_key, index))

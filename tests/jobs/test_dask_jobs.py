@@ -271,3 +271,33 @@ def test_jobs_leave_no_queues_on_the_scheduler(cluster, tmp_path):
     while set(queues.queues) - before:
         assert time.monotonic() < deadline, set(queues.queues) - before
         time.sleep(0.05)
+
+
+def test_steps_starting_at_once_make_the_worker_client_one_at_a_time(monkeypatch):
+    """Two steps starting together on a fresh worker must not both make the worker's client
+    (the race failed a step with an AssertionError inside Dask's connect)."""
+    import threading
+
+    import distributed
+
+    from app.jobs import dask_backend
+
+    inside, overlaps = [0], []
+    guard = threading.Lock()
+
+    def slow_get_client():
+        with guard:
+            inside[0] += 1
+            overlaps.append(inside[0])
+        time.sleep(0.05)
+        with guard:
+            inside[0] -= 1
+        return "client"
+
+    monkeypatch.setattr(distributed, "get_client", slow_get_client)
+    threads = [threading.Thread(target=dask_backend.worker_client) for _ in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert overlaps == [1, 1, 1, 1]
