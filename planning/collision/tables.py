@@ -198,10 +198,17 @@ def _adaptive_values(shape: tuple, gap: np.ndarray, exact_below: float, exact) -
                                                     0, len(coarse[j]) - 1)]
                                  for j in range(k)])
         bound = np.full(len(idx), -np.inf)
+        touching = np.ones(len(idx), dtype=bool)
         for corner in corners:
             c = np.where(corner[None] == 1, above, below)
-            bound = np.maximum(bound, values[tuple(c.T)] - np.abs(idx - c) @ gap)
-        need = bound < exact_below
+            around = values[tuple(c.T)]
+            bound = np.maximum(bound, around - np.abs(idx - c) @ gap)
+            touching &= around <= 0.0
+        # Inside a cell whose corners all touch, the links touch too (or nearly): the bound
+        # (at most 0) stands, and the exact stage decides there as it would on a table of
+        # zeros. Links that touch everywhere (parts of one wrist) thus cost a table's coarse
+        # levels, not every node.
+        need = (bound < exact_below) & ~touching
         values[tuple(idx[~need].T)] = bound[~need]
         if need.any():
             values[tuple(idx[need].T)] = exact(idx[need])

@@ -357,6 +357,37 @@ def test_pair_tables_agree_with_spheres_and_the_exact_stage():
     assert np.all(lower >= np.minimum(gap[free] - 5.0, 10.0) - 1e-9)
 
 
+def test_a_table_of_links_that_always_touch_costs_its_coarse_levels_only(monkeypatch):
+    """A 1.7 m bar on the tip overlaps the base cube at every configuration: the table
+    computes the distance at its coarse nodes, not at every node, and still says contact
+    everywhere (the exact stage then decides, as for any pair in contact)."""
+    import planning.collision.tables as tables
+
+    model = slider(((1, 0, 0), (1, 0, 0)), limit=300.0)
+    meshes = {"cube": box_mesh((100, 100, 100)), "bar": box_mesh((1700, 100, 100))}
+    links = (Link("base", 0, np.eye(4), (Geom("mesh", mesh="cube"),)),
+             Link("mid", 1, translation(100), (Geom("mesh", mesh="cube"),)),
+             Link("tip", 2, translation(200), (Geom("mesh", mesh="bar"),)))
+    adjacent = frozenset({frozenset(("base", "mid")), frozenset(("mid", "tip"))})
+    robot = Robot(model, links, adjacent, frozenset(), meshes)
+    calls = [0]
+    distance = tables._distance
+
+    def counted(*args):
+        calls[0] += 1
+        return distance(*args)
+
+    monkeypatch.setattr(tables, "_distance", counted)
+    cm = RobotCollisionModel.from_imported(robot, table_tolerance=1.0)
+    (table,) = cm.tables
+    nodes = int(np.prod(table.shape))
+    assert nodes > 10_000
+    assert 0 < calls[0] < 0.02 * nodes
+    q = np.random.default_rng(11).uniform(-300, 300, size=(100, 2))
+    assert np.all(table.lower_bound(q) <= 0.0)
+    assert check(cm, q).collides.all()
+
+
 def test_capsule_robots_skip_neighbours_and_links_held_in_contact():
     """pile_driver's capsules: neighbours and capsules joined by short links are never
     checked; zero-length links are left out."""
