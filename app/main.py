@@ -17,6 +17,7 @@ from .api.deps import require_api_key
 from .api.routes import (
     collision,
     cylinders,
+    exports,
     health,
     jobs,
     kinematics,
@@ -149,6 +150,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.include_router(cylinders.router)
     api.include_router(trajectories.router)
     api.include_router(jobs.router)
+    api.include_router(exports.router)
     api.include_router(scenes.router)
     api.include_router(scenes.write_router, dependencies=guarded)
     api.include_router(viewer.router, dependencies=guarded)

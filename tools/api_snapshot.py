@@ -471,6 +471,18 @@ def cases() -> list[Case]:
     add("jobs.plot.tracking", "GET", "/jobs/{job:tracking}/plot")
     add("jobs.plot.no_plot", "GET", "/jobs/{job:workspace}/plot")
     add("jobs.plot.unknown", "GET", f"/jobs/{UNKNOWN_JOB}/plot")
+    # trajectory exports (JSON only: a csv writes every float in full, unrounded)
+    add("jobs.trajectory.motion", "GET", "/jobs/{job:motion}/trajectory")
+    add("jobs.trajectory.motion.ros", "GET",
+        "/jobs/{job:motion}/trajectory?format=joint_trajectory")
+    add("jobs.trajectory.multiarm.arm", "GET",
+        "/jobs/{job:multiarm}/trajectory?arm=left&format=joint_trajectory")
+    add("jobs.trajectory.multiarm.csv_of_all", "GET",
+        "/jobs/{job:multiarm}/trajectory?format=csv")
+    add("jobs.trajectory.multiarm.bad_arm", "GET", "/jobs/{job:multiarm}/trajectory?arm=top")
+    add("jobs.trajectory.bad_format", "GET", "/jobs/{job:motion}/trajectory?format=xml")
+    add("jobs.trajectory.no_trajectory", "GET", "/jobs/{job:workspace}/trajectory")
+    add("jobs.trajectory.unknown", "GET", f"/jobs/{UNKNOWN_JOB}/trajectory")
     add("jobs.list", "GET", "/jobs")
     add("jobs.list.page", "GET", "/jobs?limit=3&offset=2")
     add("jobs.list.filtered", "GET", "/jobs?kind=sleep&status=failed")
