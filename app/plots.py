@@ -5,9 +5,9 @@ joint angles, joint speeds, error per axis, error)."""
 from __future__ import annotations
 
 import io
+from typing import Any
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from planning.trajectories.trajectory import Samples
 
@@ -39,6 +39,8 @@ def trajectory_png(
     unit = "/".join(sorted(set(joint_units))) or "rad"
     extra = 0 if hydraulic is None else 1 + (hydraulic.get("flow") is not None)
     rows = 4 + extra
+    from matplotlib.figure import Figure  # on first use: a second of every start otherwise
+
     fig = Figure(figsize=(8.0, 9.0 + 2.0 * extra), dpi=100)  # no pyplot: thread-safe
     axes = fig.subplots(rows, 1, sharex=True)
     for ax, (attr, label) in zip(axes, _ROWS):
@@ -97,6 +99,8 @@ def tracking_png(
     t, q = np.asarray(t, dtype=float), np.asarray(q, dtype=float)
     e = np.asarray(x_desired, dtype=float) - np.asarray(x_actual, dtype=float)
     qd = np.diff(q, axis=0) / np.diff(t)[:, None]
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(8.0, 9.0), dpi=100)  # no pyplot: no global state, thread-safe
     axes = fig.subplots(4, 1, sharex=True)
     for j, name in enumerate(joint_names):
@@ -121,7 +125,7 @@ def tracking_png(
     return _png(fig, title)
 
 
-def _png(fig: Figure, title: str) -> bytes:
+def _png(fig: Any, title: str) -> bytes:
     if title:
         fig.suptitle(title)
     fig.tight_layout()
