@@ -39,6 +39,9 @@ STATUS_VALUES: dict[str, str] = {
     "start_in_collision": "the start configuration is in collision",
     "goal_in_collision": "the goal configuration (every one of them) is in collision",
     "goal_unreachable": "no configuration reaches the goal pose",
+    # paths followed step by step (Cartesian segments)
+    "discontinuous": "the joint path would jump (an IK branch change, a flip near a singular "
+                     "configuration)",
     # time parameterisation
     "infeasible": "no timing keeps the limits (e.g. a start or end speed that is too high)",
     "unbounded": "somewhere no limit bounds the path speed (a joint without any limit)",

@@ -25,6 +25,8 @@ EMITTED = {
                                              "goal_unreachable", "out_of_limits", "no_path",
                                              "timeout"],
     "planning.trajectories.topp.ToppStatus": ["ok", "infeasible", "unbounded"],
+    "planning.motion.cartesian.CartesianStatus": ["ok", "unreachable", "out_of_limits",
+                                                  "discontinuous", "collision", "timeout"],
 }
 
 
