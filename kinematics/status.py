@@ -39,6 +39,11 @@ STATUS_VALUES: dict[str, str] = {
     "start_in_collision": "the start configuration is in collision",
     "goal_in_collision": "the goal configuration (every one of them) is in collision",
     "goal_unreachable": "no configuration reaches the goal pose",
+    # constrained motion
+    "start_violates_constraint": "the start configuration is outside a path constraint's "
+                                 "tolerance",
+    "goal_violates_constraint": "the goal configuration is outside a path constraint's "
+                                "tolerance",
     # paths followed step by step (Cartesian segments)
     "discontinuous": "the joint path would jump (an IK branch change, a flip near a singular "
                      "configuration)",

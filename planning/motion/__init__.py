@@ -12,6 +12,13 @@ when the arm can follow it, else a joint-space motion.
 
 from .cartesian import CartesianResult, CartesianStatus, plan_arc, plan_line
 from .checker import DEFAULT_RESOLUTION, PRISMATIC_SCALE, PRISMATIC_STEP, MotionChecker
+from .constraints import (
+    ConstrainedResult,
+    ConstrainedStatus,
+    parse_constraint,
+    parse_constraints,
+    plan_constrained,
+)
 from .planner import (
     MAX_RESOLUTION,
     MAX_TIME_LIMIT,
@@ -23,7 +30,9 @@ from .planner import (
 )
 from .warm import start_warm_up, warm_up
 
-__all__ = ["MotionChecker", "MotionResult", "MotionStatus", "plan_motion", "PLANNERS",
+__all__ = ["plan_constrained", "parse_constraint", "parse_constraints", "ConstrainedResult",
+           "ConstrainedStatus",
+           "MotionChecker", "MotionResult", "MotionStatus", "plan_motion", "PLANNERS",
            "DEFAULT_RESOLUTION", "PRISMATIC_SCALE", "PRISMATIC_STEP", "MAX_RESOLUTION",
            "MIN_RESOLUTION", "MAX_TIME_LIMIT", "warm_up", "start_warm_up", "plan_line",
            "plan_arc", "CartesianResult", "CartesianStatus"]

@@ -27,6 +27,9 @@ EMITTED = {
     "planning.trajectories.topp.ToppStatus": ["ok", "infeasible", "unbounded"],
     "planning.motion.cartesian.CartesianStatus": ["ok", "unreachable", "out_of_limits",
                                                   "discontinuous", "collision", "timeout"],
+    "planning.motion.constraints.ConstrainedStatus": [
+        "ok", "out_of_limits", "start_violates_constraint", "goal_violates_constraint",
+        "start_in_collision", "goal_in_collision", "timeout"],
 }
 
 
