@@ -48,6 +48,12 @@ COLLISION_HINT = ("Show the balls the collision checker uses for the robot: sphe
                   "imported robot's collision geometry, balls along a D-H robot's link "
                   "capsules")
 NO_SCENE = "No scene shown: `POST /viewer/show {\"scene\": id}`."
+GOAL_HINT = ("Keep the arm's configuration as the goal of the next plan (move it there with the "
+             "sliders or the gizmo first)")
+PLAN_HINT = ("Plan a collision-free motion from the arm's configuration to the kept goal, in "
+             "the scene shown (a motion job); the answer plays at once")
+NO_GOAL = ("Move the arm to a goal, press **Set goal here**, move it to the start, then "
+           "**Plan**.")
 
 HELP = ("Pick a robot, move the joints, or drag the gizmo at the tool (IK). "
         "`POST /viewer/show` shows robots, finished jobs and scenes here.")
@@ -109,7 +115,11 @@ class ControlPanel:
             self.progress = gui.add_progress_bar(0.0, visible=False, animated=True)
             self.workspace = gui.add_markdown("")
         with gui.add_folder("Plan", order=7):
-            self.plan = gui.add_markdown("No plan shown: `POST /viewer/show {\"job\": id}`.")
+            self.set_goal = gui.add_button("Set goal here", hint=GOAL_HINT)
+            self.run_plan = gui.add_button("Plan", disabled=True, hint=PLAN_HINT)
+            self.motion = gui.add_markdown(NO_GOAL)
+            self.plan = gui.add_markdown("No plan shown: plan one above, or "
+                                         "`POST /viewer/show {\"job\": id}`.")
             self.time = gui.add_slider("Time [s]", min=0.0, max=1.0, step=0.01,
                                        initial_value=0.0, disabled=True)
             self.play = gui.add_button("Play", disabled=True)

@@ -63,7 +63,14 @@ from kinematics.model import RobotModel
 from .camera import View, frame_bounds, union_bounds
 from .collision import CollisionSpheres
 from .gate import Gate, lock_websockets_server, new_secret
-from .gui import MAX_GUI_SAMPLES, MIN_GUI_SAMPLES, NO_SCENE, ControlPanel
+from .gui import (
+    MAX_GUI_SAMPLES,
+    MIN_GUI_SAMPLES,
+    NO_GOAL,
+    NO_SCENE,
+    ControlPanel,
+    to_display,
+)
 from .meshes import ImportedRobotNodes, robot_nodes
 from .results import DRAWERS, Plan, drawable, plan_from_motion, plan_from_result
 from .scene import (
@@ -89,8 +96,10 @@ IK_TARGET = "/ik/target"
 TICK_S = 1.0 / 30.0
 #: How often (s) the robot list is compared with the registry.
 ROBOTS_REFRESH_S = 1.0
-#: How often (s) a running workspace job is polled.
+#: How often (s) a running workspace or motion job is polled.
 POLL_S = 0.2
+#: Planning time (s) of a motion planned from the viewer's Plan button.
+PLAN_TIME_LIMIT_S = 5.0
 
 
 class ServiceState(Protocol):
@@ -136,6 +145,8 @@ class Viewer:
         self._ik_wake = threading.Event()
         self._ik_last: IKResult | None = None
         self._workspace_job: str | None = None
+        self._goal: tuple[str, str, np.ndarray] | None = None  # (robot or rig, arm, q)
+        self._motion_job: str | None = None
         self.gate: Gate | None = None
         self._options: tuple[str, ...] = ()
         self.current: dict | None = None
@@ -253,6 +264,10 @@ class Viewer:
             for arm in self._arms.values():
                 arm.nodes.remove()
             self._generation += 1
+            if key != self._key:
+                self._goal = None
+                self.gui.run_plan.disabled = True
+                self.gui.motion.content = NO_GOAL
             self._key = key
             self._arms = {}
             for arm, model in models.items():
@@ -426,6 +441,14 @@ class Viewer:
         @g.run_workspace.on_click
         def _(event: Any) -> None:
             self.run_workspace(g.samples.value)
+
+        @g.set_goal.on_click
+        def _(event: Any) -> None:
+            self.set_goal()
+
+        @g.run_plan.on_click
+        def _(event: Any) -> None:
+            self.plan_to_goal()
 
         @g.time.on_update
         def _(event: Any) -> None:
@@ -657,14 +680,7 @@ class Viewer:
 
     def _workspace_in_flight(self) -> str | None:
         """The viewer's workspace job if it is still queued or running (under the lock)."""
-        job_id = self._workspace_job
-        if job_id is None:
-            return None
-        try:
-            status = self.jobs.get(job_id).status
-        except KeyError:
-            status = "vanished"
-        return job_id if status in ("queued", "running") else None
+        return self._in_flight(self._workspace_job)
 
     def _poll_workspace(self) -> None:
         with self._lock:
@@ -706,6 +722,105 @@ class Viewer:
         with self._lock:
             if self._plan is not None:
                 self.gui.workspace.content = self._plan.summary
+
+    # ---- planning from the viewer ---------------------------------------------------------
+    def set_goal(self) -> np.ndarray:
+        """Keep the active arm's configuration as the goal of the next ``plan_to_goal``."""
+        with self._lock:
+            arm = self._arms[self._active]
+            self._goal = (self._key, self._active, arm.q.copy())
+            self.gui.run_plan.disabled = False
+            shown = ", ".join(f"{v:.1f}" for v in to_display(arm.model, arm.q))
+            self.gui.motion.content = (f"Goal kept: ({plain(shown)}). Move the arm to the "
+                                       "start, then press **Plan**.")
+            return arm.q.copy()
+
+    def plan_to_goal(self, time_limit: float = PLAN_TIME_LIMIT_S) -> str | None:
+        """Submit a ``motion`` job of the active arm from its configuration to the kept goal,
+        in the scene shown (if any); the tick loop follows it and plays the answer. Returns
+        the job id, or None when it is not started (the panel says why): no goal kept for
+        this robot and arm, a plan from the viewer still running, a robot the motion planner
+        does not know by id (a rig's arm), or the job manager refused it."""
+        with self._lock:
+            arm = self._arms[self._active]
+            if self._goal is None or self._goal[:2] != (self._key, self._active):
+                self.gui.motion.content = f"**Not planned**: {NO_GOAL}"
+                return None
+            busy = self._in_flight(self._motion_job)
+            if busy is not None:
+                self.gui.motion.content = (f"**Not planned**: motion job {code(busy)} is "
+                                           "still running; wait for it.")
+                return None
+            try:
+                self.registry.get(arm.model.id)
+            except KeyError:
+                self.gui.motion.content = (
+                    f"**Not planned**: arm {code(self._active)} of {code(self._key)} is not a "
+                    "robot of its own; plan a rig's arms with a multiarm job.")
+                return None
+            params: dict[str, Any] = {"robot": arm.model.id, "start": arm.q.tolist(),
+                                      "goal": {"q": self._goal[2].tolist()},
+                                      "time_limit": time_limit}
+            if self._site is not None:
+                params["scene"] = self._site.scene_id
+            try:
+                job = self.jobs.submit("motion", params)
+            except Exception as exc:  # JobParamsError, QueueFullError: say why in the panel
+                self.gui.motion.content = f"**Not planned**: {plain(exc)}"
+                return None
+            self._motion_job = job.id
+            self.gui.motion.content = f"Planning: job {code(job.id)} queued"
+            return job.id
+
+    def _in_flight(self, job_id: str | None) -> str | None:
+        """``job_id`` if that job is still queued or running (under the lock)."""
+        if job_id is None:
+            return None
+        try:
+            status = self.jobs.get(job_id).status
+        except KeyError:
+            status = "vanished"
+        return job_id if status in ("queued", "running") else None
+
+    def _poll_motion(self) -> None:
+        """Follow the viewer's motion job: its status in the panel, its answer shown (and
+        played) once it succeeds, or why it did not."""
+        with self._lock:
+            job_id = self._motion_job
+        if job_id is None:
+            return
+        try:
+            job = self.jobs.get(job_id)
+        except KeyError:
+            job = None
+        except StoreError:
+            return  # the store is down: poll again later
+        if job is not None and job.status in ("queued", "running"):
+            return
+        with self._lock:
+            self._motion_job = None
+            if job is None or job.status != "succeeded":
+                why = "vanished" if job is None else f"{job.status}: {job.error or ''}"
+                self.gui.motion.content = f"**Not planned**: job {code(job_id)} {plain(why)}"
+                return
+        try:
+            self.show_job(job_id)
+        except (KeyError, ValueError, JobNotReady) as exc:
+            with self._lock:
+                self.gui.motion.content = f"Job {code(job_id)} cannot be shown: {plain(exc)}"
+            return
+        with self._lock:
+            result = json.loads(self.jobs.result(job_id))
+            status = result.get("status", "?")
+            if status == "ok":
+                self.gui.motion.content = f"Planned: job {code(job_id)}, playing."
+                self._time = 0.0
+                self._playing = True
+                self.gui.play.label = "Pause"
+            else:
+                message = result.get("message") or ""
+                self.gui.motion.content = (f"**No plan** ({plain(status)}): "
+                                           f"{plain(message)}")
 
     def show_job(self, job_id: str, problem: int | None = None) -> dict:
         """Draw a finished job's result (``problem``: which of a batch's problems). KeyError
@@ -820,6 +935,7 @@ class Viewer:
                 if now - last_poll >= POLL_S:
                     last_poll = now
                     self._poll_workspace()
+                    self._poll_motion()
                 if now - last_refresh >= ROBOTS_REFRESH_S:
                     last_refresh = now
                     self.refresh_robots()

@@ -196,6 +196,32 @@ def test_a_path_job_in_the_browser(service, browser):
     page.close()
 
 
+def test_plan_pressed_in_the_browser_plans_and_plays(service, browser):
+    """Set goal here, move the arm back, Plan: a motion job runs in the pool and its plan's
+    nodes appear in the browser, the arm moving along it."""
+    api, client = service
+    viewer: Viewer = api.state.viewer
+    goal = np.array([1.0, 0.3, -0.3, 0.0, 0.5, 0.0])
+    start = np.array([-1.0, 0.3, -0.3, 0.0, 0.5, 0.0])
+    viewer.select("glt_palletizer", goal)
+    page = _open(browser, viewer)
+    page.get_by_role("button", name="Set goal here").click()
+    page.wait_for_function("() => !document.evaluate(\"//button[normalize-space()='Plan']\","
+                           " document, null, 9, null).singleNodeValue.disabled")
+    viewer.set_q(start)
+    page.get_by_role("button", name="Plan", exact=True).click()
+    page.wait_for_function("() => '/plan/motion/tool_path' in window.__viserSceneTree"
+                           ".getState()", timeout=60_000)
+    assert "playing" in viewer.gui.motion.content
+    # The arm plays along the plan: its tool leaves the start in the browser.
+    at_start = fk(api.state.registry.get("glt_palletizer"), start)[:3, 3] * MM_TO_M
+    page.wait_for_function(
+        """([position, start]) => { const p = eval(position)('/robot/glt_palletizer/tool');
+            return p !== null && Math.hypot(...p.map((v, i) => v - start[i])) > 0.01; }""",
+        arg=[NODE_POSITION, [float(v) for v in at_start]])
+    page.close()
+
+
 def test_a_keyed_viewer_in_a_browser(service, browser, tmp_path_factory):
     """With an API key: a browser without it gets the 401 page; ``/?key=`` sets the cookie,
     drops the key from the address, and the page connects and draws the robot."""

@@ -536,3 +536,52 @@ def test_a_motion_answer_of_an_imported_robot_plays_in_the_browser(service, page
                        * MM_TO_M)
     shot = _scene_pixels(page, tmp_path / "viewer_motion_imported.png")
     assert shot.std() > 8.0 and len(np.unique(shot)) > 50
+
+
+def test_set_goal_then_plan_submits_a_motion_job_and_plays_its_answer(api):
+    """The Plan folder: the arm's configuration kept as the goal, then Plan from where the arm
+    is now, in the scene shown: a motion job with those values; once it succeeds its answer
+    is drawn and plays. Refusals say why in the panel."""
+    v: Viewer = api.state.viewer
+    api.state.scenes.add("cell", {"objects": [_ball()]})
+    v.select(ROBOT)
+    assert v.plan_to_goal() is None and "Set goal here" in v.gui.motion.content
+    assert v.gui.run_plan.disabled
+    v.set_q(np.array(GOAL))
+    np.testing.assert_allclose(v.set_goal(), GOAL)
+    assert not v.gui.run_plan.disabled
+    v.set_q(np.array(START))
+    v.show_scene("cell")
+    job_id = v.plan_to_goal()
+    assert job_id is not None
+    job = api.state.jobs.get(job_id)
+    assert job.kind == "motion"
+    np.testing.assert_allclose(job.params["start"], START)
+    np.testing.assert_allclose(job.params["goal"]["q"], GOAL)
+    assert job.params["robot"] == ROBOT
+    assert [o["id"] for o in job.params["scene"]["objects"]] == ["ball"]  # filled in
+    # One plan from the viewer at a time.
+    assert v.plan_to_goal() is None and job_id in v.gui.motion.content
+    # Run it as a worker would, then let the viewer find it finished.
+    params, result = _run({k: job.params[k] for k in ("robot", "scene", "start", "goal",
+                                                       "time_limit")})
+    assert result["status"] == "ok"
+    api.state.store.finish_job(job_id, "succeeded", result_json=json.dumps(result))
+    v._poll_motion()
+    assert "playing" in v.gui.motion.content
+    assert "/plan/motion/tool_path" in v.plan_nodes
+    _wait(lambda: v.gui.time.value > 0.0)
+    # Another robot: the goal is dropped.
+    v.select("pile_driver")
+    assert v.gui.run_plan.disabled and v.plan_to_goal() is None
+
+
+def test_a_failed_plan_from_the_viewer_says_why(api):
+    v: Viewer = api.state.viewer
+    v.select(ROBOT)
+    v.set_goal()
+    job_id = v.plan_to_goal()
+    api.state.store.finish_job(job_id, "failed", error="the planner stopped")
+    v._poll_motion()
+    assert "Not planned" in v.gui.motion.content and "the planner stopped" in v.gui.motion.content
+    assert v.plan_nodes == []
