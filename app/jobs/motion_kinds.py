@@ -3,7 +3,9 @@ one problem or a batch of them sharing the robot, the scene and the planner sett
 
 The body is that of ``POST /robots/{id}/motion`` plus ``robot``, with ``time_limit`` up to
 60 s per problem, and ``problems`` (at most 1,000 ``{start, goal, seed?, time_limit?}``) in
-place of ``start`` and ``goal`` for a batch. The models here (goal, shared settings, one
+place of ``start`` and ``goal`` for a batch, or ``steps`` (a task, ``planning.motion.task``:
+at most ``MAX_TASK_STEPS`` moves, lines and arcs planned in turn from ``start``) in place of
+``goal``. The models here (goal, shared settings, one
 problem's result) are the route's too.
 
 At submission (``prepare_motion``, the kind's ``prepare`` hook, called by the job manager
@@ -60,19 +62,34 @@ from planning.motion.request import (
     MotionRequest,
     robot_problem,
 )
+from planning.motion.task import MAX_TASK_STEPS, TASK_STATUSES, TaskRequest, robot_task
 
 from ..fields import JointVector, StrictModel, bounded_list, pose_type
 from .caps import ParamsLimitError
 from .graph import Ref, Step, run_inline
-from .kinds import MAX_SEED, JobKind, Params, Progress, Result, Submission, pick, register
+from .kinds import (
+    MAX_SEED,
+    JobKind,
+    Params,
+    Progress,
+    Result,
+    Submission,
+    absent_when_none,
+    pick,
+    register,
+)
 
 __all__ = [
     "GoalIn",
     "MotionSettings",
+    "StepsIn",
+    "STEPS_DESCRIPTION",
     "ProblemIn",
     "MotionParams",
     "MotionTrajectoryOut",
     "MotionOut",
+    "StepOut",
+    "MotionTaskOut",
     "MotionSummary",
     "MotionJobResult",
     "MAX_MOTION_PARAMS_BYTES",
@@ -104,6 +121,19 @@ _PLANNER_SETTINGS = ("planner", "seed", "resolution", "simplify", "self_collisio
                      "margin", "trajectory")
 
 SceneIn = Annotated[str, Field(min_length=1, max_length=MAX_SCENE_ID)] | dict[str, Any] | None
+
+#: A task's steps: objects checked by ``planning.motion.task`` (each by its ``type``), so an
+#: error names the step and its field (``["body", "steps", 3, "target"]``).
+StepsIn = bounded_list(dict[str, JsonValue], MAX_TASK_STEPS, min_length=1)
+STEPS_DESCRIPTION = (
+    f"A task, in place of goal: at most {MAX_TASK_STEPS} steps planned in turn from start, "
+    "each from where the one before ended: {\"type\": \"move\", \"goal\": {\"q\"|\"pose\"}, "
+    "\"planner\"?, \"time_limit\"?, \"seed\"?, \"simplify\"?} (joint space); {\"type\": "
+    "\"line\", \"target\": 4x4 pose | [x, y, z] mm, \"orientation\"?: \"slerp\"|\"hold\", "
+    "\"max_step\"?: mm, \"max_rotation\"?: rad, \"jump_threshold\"?: rad, \"time_limit\"?} "
+    "(the tool along a straight line); {\"type\": \"arc\", \"via\" and \"target\", or "
+    "\"centre\", \"axis\" and \"angle\", \"orientation\"?: \"slerp\"|\"hold\"|\"rotate\", ...} "
+    "(the tool along a circular arc). time_limit bounds the whole task")
 
 
 def _scene_description(stored: str) -> str:
@@ -179,6 +209,7 @@ class MotionParams(Params, MotionSettings):
         " (filled in with its objects when the job is submitted)"))
     start: JointVector | None = Field(None, description="rad / mm per joint (one problem)")
     goal: GoalIn | None = Field(None, description="One problem's goal")
+    steps: StepsIn | None = absent_when_none(STEPS_DESCRIPTION)  # type: ignore[valid-type]
     problems: bounded_list(ProblemIn, MAX_PROBLEMS, min_length=1) | None = Field(  # type: ignore[valid-type]
         None, description=f"A batch: at most {MAX_PROBLEMS:,} problems, in place of start "
         "and goal")
@@ -194,7 +225,17 @@ class MotionParams(Params, MotionSettings):
 
     @model_validator(mode="after")
     def _one_or_many(self) -> MotionParams:
-        if self.problems is None:
+        if self.steps is not None:
+            if self.problems is not None:
+                raise _field_error("steps", "value_error", "give steps (a task from start) "
+                                   "or problems (a batch of moves), not both")
+            if self.goal is not None:
+                raise _field_error("goal", "value_error", "give goal (one move) or steps (a "
+                                   "task), not both")
+            if self.start is None:
+                raise _field_error("start", "missing", "start is required (the task's "
+                                   "first configuration)")
+        elif self.problems is None:
             for name in ("start", "goal"):
                 if getattr(self, name) is None:
                     raise _field_error(name, "missing", f"{name} is required (or give "
@@ -206,11 +247,13 @@ class MotionParams(Params, MotionSettings):
                                        "problems (each with its own start and goal), not both")
         return self
 
-    def requests(self, model: Any) -> list[MotionRequest]:
+    def requests(self, model: Any) -> list[MotionRequest | TaskRequest]:
         """The problems checked against ``model`` (``FieldError`` naming the field): the
         params are valid already, so only what depends on the robot is checked
-        (``robot_problem``)."""
+        (``robot_problem``); a task's steps are checked here (``robot_task``)."""
         shared = {**self.planner_settings(), "time_limit": self.time_limit}
+        if self.steps is not None:
+            return [robot_task(model, self.start, self.steps, **shared)]
         if self.problems is None:
             return [robot_problem(model, self.start, self.goal.as_goal(), **shared)]
         return [robot_problem(model, p.start, p.goal.as_goal(), loc=("problems", i),
@@ -259,6 +302,50 @@ class MotionOut(Result):
     trajectory: MotionTrajectoryOut | None
 
 
+#: How a task or one of its steps ended: a move's statuses and a Cartesian segment's.
+TaskStatus = Literal[TASK_STATUSES]  # type: ignore[valid-type]
+
+
+class StepOut(Result):
+    """How one step of a task ended (``planning.motion.task.StepResult.to_dict``)."""
+
+    index: int = Field(description="The step's place in steps")
+    type: str = Field(description="move, line or arc")
+    status: TaskStatus = Field(description="A move's (ok, start_in_collision, "
+                               "goal_in_collision, goal_unreachable, out_of_limits, no_path, "
+                               "timeout) or a segment's (ok, unreachable, out_of_limits, "
+                               "discontinuous, collision, timeout)")
+    message: str
+    states: list[int] = Field(min_length=2, max_length=2, description="[first, last]: the "
+                              "step's states in the task's path, both included (first is the "
+                              "previous step's last)")
+    fraction: float | None = Field(description="A line or an arc: the share of its length "
+                                   "reached (null for a move)")
+    planner: str = Field(description="What planned it: the move's planner, line or arc")
+    planning_time_s: float
+    pairs: list[Pair] = Field(description="Colliding pairs (link, object id or link)")
+    deviation: float | None = Field(description="A line or an arc: the tool's worst distance "
+                                    "from the ideal curve between two states, mm")
+    goal: list[float] | None = Field(description="A move: the goal configuration reached")
+
+
+class MotionTaskOut(MotionOut):
+    """A task's outcome (``planning.motion.task.TaskResult.to_dict``): the fields of one
+    move's, over the whole path, and ``steps``."""
+
+    status: TaskStatus = Field(description="One move: ok, start_in_collision, "
+                               "goal_in_collision, goal_unreachable, out_of_limits, no_path or "
+                               "timeout. A task: ok, or the status of the first step that "
+                               "failed (planning stopped there), a move's or a line's or an "
+                               "arc's (unreachable, discontinuous, collision, ...)")
+    path: list[list[float]] = Field(description="Waypoints, rad / mm per joint; one move: "
+                                    "empty unless ok. A task: the states of the steps planned "
+                                    "from start, a failing step's up to where it stopped")
+    length: float | None = Field(description="Joint-space length of the path")
+    steps: list[StepOut] = Field(description="One per step planned, up to the first that "
+                                 "failed")
+
+
 class MotionSummary(Result):
     solved: int = Field(description="Problems with status ok")
     total: int
@@ -283,13 +370,14 @@ class _OneOrMany(Result):
     def _fields_of_its_form(self, handler: Any):  # no return type: the schema stays the model's
         data = handler(self)
         if getattr(self, "problems", None) is None:
-            return {k: v for k, v in data.items() if k not in ("problems", "summary")}
-        return {k: v for k, v in data.items() if k not in MotionOut.model_fields}
+            drop = ("problems", "summary") + (("steps",) if data.get("steps") is None else ())
+            return {k: v for k, v in data.items() if k not in drop}
+        return {k: v for k, v in data.items() if k not in MotionTaskOut.model_fields}
 
 
 #: The result of a motion job: ``robot``, ``joints`` and, for one problem, the fields of
-#: ``MotionOut``; for a batch, ``problems`` (one ``MotionOut`` each, in order) and
-#: ``summary``.
+#: ``MotionOut`` (of ``MotionTaskOut`` for a task, ``steps`` included); for a batch,
+#: ``problems`` (one ``MotionOut`` each, in order) and ``summary``.
 MotionJobResult = create_model(  # type: ignore[call-overload]
     "MotionJobResult",
     __base__=_OneOrMany,
@@ -297,7 +385,7 @@ MotionJobResult = create_model(  # type: ignore[call-overload]
     robot=(str, Field(description="Robot id")),
     joints=(list[str], Field(description="The joint names, in the order of every q")),
     **{name: (info.annotation | None, Field(None, description=info.description))
-       for name, info in MotionOut.model_fields.items()},
+       for name, info in MotionTaskOut.model_fields.items()},
     problems=(list[MotionOut] | None, Field(None, description="A batch: one result per "
                                             "problem, in order")),
     summary=(MotionSummary | None, Field(None, description="A batch: over its problems")),
@@ -365,9 +453,11 @@ def warm_up(req: MotionRequest, collision_model: Any, scene: Any) -> None:
 
 
 def motion_answer(result: Any, joint_names: list[str]) -> dict[str, Any]:
-    """The fields of ``MotionOut`` of a ``MotionResult``."""
+    """The fields of ``MotionOut`` of a ``MotionResult``, of ``MotionTaskOut`` of a task's
+    ``TaskResult``."""
     data = result.to_dict(joint_names=joint_names)
-    return MotionOut(**pick(MotionOut, data)).model_dump(mode="json")
+    out = MotionTaskOut if "steps" in data else MotionOut
+    return out(**pick(out, data)).model_dump(mode="json")
 
 
 def summarize(results: list[dict[str, Any]]) -> dict[str, Any]:

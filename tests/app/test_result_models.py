@@ -19,11 +19,12 @@ import numpy as np
 import pytest
 from pydantic import BaseModel
 
-from app.api.routes.motion import MotionAnswer
+from app.api.routes.motion import MotionAnswer, MotionTaskAnswer
 from app.jobs import drilling_kinds, motion_kinds, path_kinds, tracking_kinds
 from app.jobs.catalog import KINDS
 from planning.drilling.multiarm import ArmPlan, FacePlan
 from planning.motion import MotionResult, MotionStatus
+from planning.motion.task import StepResult, TaskResult
 from planning.paths.arm import ArmPathResult
 from planning.paths.compare import CompareRow
 from planning.paths.planners import PathResult
@@ -53,6 +54,11 @@ def _motion_result() -> MotionResult:
     return MotionResult(MotionStatus.OK, "ok", np.zeros((2, 6)), length=1.0)
 
 
+def _task_result() -> TaskResult:
+    return TaskResult("ok", "ok", np.zeros((2, 6)), [StepResult(0, "move", "ok", "ok", 0, 1,
+                                                                "rrt_connect")])
+
+
 def _path_result() -> PathResult:
     return PathResult(np.zeros((2, 3)), 1.0, 1.0, 0.1, np.zeros(3), "a", 1, PlanStatus.OK,
                       "ok")
@@ -68,9 +74,10 @@ PAIRS: dict[str, list[Pair]] = {
     # ---- job kinds ----
     "motion": [
         MOTION,
-        Pair(motion_kinds.MotionJobResult, (MotionResult,),
+        Pair(motion_kinds.MotionTaskOut, (TaskResult,), samples=(_task_result(),)),
+        Pair(motion_kinds.MotionJobResult, (MotionResult, TaskResult),
              service=frozenset({"robot", "joints", "problems", "summary"}),
-             samples=(_motion_result(),)),
+             samples=(_task_result(),)),
     ],
     "path": [Pair(path_kinds.PathResult, (PathResult, ArmPathResult),
                   service=frozenset({"robot"}),
@@ -121,6 +128,8 @@ PAIRS: dict[str, list[Pair]] = {
         MOTION,
         Pair(MotionAnswer, (MotionResult,), service=frozenset({"robot", "joints"}),
              samples=(_motion_result(),)),
+        Pair(MotionTaskAnswer, (TaskResult,), service=frozenset({"robot", "joints"}),
+             samples=(_task_result(),)),
     ],
 }
 
@@ -147,13 +156,15 @@ def test_every_planning_endpoint_with_a_response_model_is_paired(client):
             name = f"{method.upper()} {path}"
             schema = op["responses"].get("200", {}).get("content", {}).get(
                 "application/json", {}).get("schema") or {}
-            if "$ref" in schema:
-                typed[name] = schema["$ref"].rsplit("/", 1)[-1]
+            # One model, or one of several (a union of models, each of them paired).
+            refs = [schema] if "$ref" in schema else schema.get("anyOf", [])
+            if refs and all("$ref" in r for r in refs):
+                typed[name] = {r["$ref"].rsplit("/", 1)[-1] for r in refs}
             else:
                 assert name in UNTYPED, f"{name} answers {schema}: pair it or list it"
     assert typed and set(typed) <= set(PAIRS)
-    for name, model in typed.items():
-        assert model in {p.model.__name__ for p in PAIRS[name]}
+    for name, models in typed.items():
+        assert models <= {p.model.__name__ for p in PAIRS[name]}
 
 
 def _library_fields(classes: tuple[type, ...]) -> dict[str, Any]:
