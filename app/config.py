@@ -8,7 +8,13 @@ from pathlib import Path
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from .limits import DEFAULT_BODY_CAP, ROUTE_BODY_CAPS
+
 __all__ = ["Settings"]
+
+#: The largest body cap of any route (``app.limits``), and that route: the service-wide cap
+#: defaults to it, so the default lowers no route's cap and ``--help`` states the real one.
+LARGEST_BODY_CAP, LARGEST_BODY_ROUTE = max((cap, route) for route, cap in ROUTE_BODY_CAPS.items())
 
 
 class Settings(BaseSettings):
@@ -41,9 +47,13 @@ class Settings(BaseSettings):
         None, repr=False,
         description="key every request that changes state must bear (Authorization: Bearer); "
         "prefer the environment variable: a flag shows in the process list")
-    max_queued_jobs: int = Field(1000, ge=1, description="jobs waiting at once (503 beyond)")
-    max_body_bytes: int = Field(80 * 1024 * 1024, ge=1024,
-                                description="largest request body of any route, bytes")
+    max_queued_jobs: int = Field(1000, ge=1, description="jobs waiting at once (POST /jobs "
+                                 "answers 429 beyond)")
+    max_body_bytes: int = Field(
+        LARGEST_BODY_CAP, ge=1024,
+        description="largest request body of any route, bytes (413 above). Each route has its "
+        f"own cap, which this lowers: at most {LARGEST_BODY_CAP >> 20} MiB "
+        f"({LARGEST_BODY_ROUTE}), {DEFAULT_BODY_CAP >> 10} KiB for most (app.limits)")
     job_time_limit_s: float = Field(
         3600.0, ge=1, le=7 * 86_400,
         description="seconds a job may run, and the most a job may ask for (time_limit_s of "

@@ -4,10 +4,17 @@ from __future__ import annotations
 
 from collections.abc import AsyncIterator, Sequence
 from contextlib import asynccontextmanager
+from importlib.resources import files
 
 from fastapi import Depends, FastAPI, Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.openapi.docs import (
+    get_redoc_html,
+    get_swagger_ui_html,
+    get_swagger_ui_oauth2_redirect_html,
+)
+from fastapi.responses import HTMLResponse, JSONResponse
+from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from kinematics.errors import FieldError
@@ -99,6 +106,40 @@ def validation_answer(errors: Sequence[dict]) -> tuple[int, list[dict]]:
     return status, items
 
 
+#: Where the Swagger UI and ReDoc files are served from (the ``fastapi-offline`` package's).
+DOCS_ASSETS = "/docs-assets"
+
+
+def serve_docs(api: FastAPI) -> None:
+    """``/docs`` (Swagger UI) and ``/redoc`` with their scripts and styles served by the
+    service itself (``DOCS_ASSETS``), not fetched from a CDN: the pages work offline and on a
+    closed site network."""
+    static = files("fastapi_offline") / "static"
+    api.mount(DOCS_ASSETS, StaticFiles(directory=str(static)), name="docs-assets")
+
+    @api.get("/docs", include_in_schema=False)
+    async def swagger_ui(request: Request) -> HTMLResponse:
+        root = request.scope.get("root_path", "")
+        return get_swagger_ui_html(
+            openapi_url=f"{root}{api.openapi_url}", title=f"{api.title} - Swagger UI",
+            oauth2_redirect_url=f"{root}{api.swagger_ui_oauth2_redirect_url}",
+            swagger_js_url=f"{root}{DOCS_ASSETS}/swagger-ui-bundle.js",
+            swagger_css_url=f"{root}{DOCS_ASSETS}/swagger-ui.css",
+            swagger_favicon_url=f"{root}{DOCS_ASSETS}/favicon.png")
+
+    @api.get(str(api.swagger_ui_oauth2_redirect_url), include_in_schema=False)
+    async def swagger_ui_redirect() -> HTMLResponse:
+        return get_swagger_ui_oauth2_redirect_html()
+
+    @api.get("/redoc", include_in_schema=False)
+    async def redoc(request: Request) -> HTMLResponse:
+        root = request.scope.get("root_path", "")
+        return get_redoc_html(
+            openapi_url=f"{root}{api.openapi_url}", title=f"{api.title} - ReDoc",
+            redoc_js_url=f"{root}{DOCS_ASSETS}/redoc.standalone.js",
+            redoc_favicon_url=f"{root}{DOCS_ASSETS}/favicon.png", with_google_fonts=False)
+
+
 def create_app(settings: Settings | None = None) -> FastAPI:
     """A new application with its own settings, robot registry and (optional) viewer."""
     settings = settings or Settings()
@@ -124,7 +165,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             api.state.compute.shutdown()
 
     api = FastAPI(title="kinoplan", version=__version__, description=DESCRIPTION,
-                  lifespan=lifespan, responses=ERROR_RESPONSES)
+                  lifespan=lifespan, responses=ERROR_RESPONSES, docs_url=None, redoc_url=None)
+    serve_docs(api)
     api.state.settings = settings
     api.state.store = Store.in_data_dir(settings.data_dir)
     api.state.registry = RobotRegistry(api.state.store)

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, Field, StringConstraints
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints
 
 from ..fields import MAX_COORDINATE_MM, JointVector, pose_type
-from .schemas import Body
+from .schemas import Body, body_examples
 
 #: A cylinder length in a request, mm.
 Length = Annotated[float, Field(gt=0, le=MAX_COORDINATE_MM)]
@@ -26,6 +26,10 @@ __all__ = [
 
 
 class CylindersRequest(Body):
+    model_config = ConfigDict(json_schema_extra=body_examples(
+        {"q": [0.3, 0.5, -0.5, -0.5, 0.1, 0.0], "qd": [0.0, 0.1, 0.1, 0.0, 0.0, 0.0]},
+        robot="pile_driver"))
+
     q: JointVector = Field(description="One configuration (dof values), rad or mm per joint")
     qd: JointVector | None = Field(
         None, description="Joint speeds (dof values, rad/s or mm/s); adds each cylinder's speed"
@@ -51,6 +55,10 @@ class CylindersResponse(BaseModel):
 
 
 class CylindersInverseRequest(Body):
+    model_config = ConfigDict(json_schema_extra=body_examples(
+        {"lengths": {"boom": 490.0, "stick": 500.0}, "q": [0.3, 0.0, 0.0, -0.5, 0.1, 0.0]},
+        robot="pile_driver"))
+
     lengths: dict[CylinderName, Length] = Field(
         min_length=1, max_length=64, description="Cylinder lengths (mm) by cylinder name"
     )
@@ -66,6 +74,10 @@ class CylindersInverseResponse(BaseModel):
 
 
 class PoseToCylindersRequest(Body):
+    model_config = ConfigDict(json_schema_extra=body_examples(
+        {"pose": [[0.8047, -0.458, -0.3777, 1732.3], [0.3534, -0.1417, 0.9247, 535.9],
+                  [-0.477, -0.8776, 0.0479, 327.5], [0, 0, 0, 1]]}, robot="pile_driver"))
+
     pose: pose_type(4) = Field(description="Target tool pose, 4x4, world frame (that of fk), mm")
     q0: JointVector | None = Field(
         None, description="Initial guess / preferred configuration (dof values)"

@@ -43,6 +43,7 @@ __all__ = [
     "IKResponse",
     "WorkspaceRequest",
     "WorkspaceResponse",
+    "body_examples",
 ]
 
 #: Most configurations in one FK call (413 above).
@@ -65,6 +66,28 @@ MAX_SEED = 2**32 - 1
 
 class Body(StrictModel):
     """Request bodies: unknown fields and NaN/inf are rejected (422)."""
+
+
+def body_examples(*values: dict[str, Any], robot: str | None = None) -> dict[str, Any]:
+    """``json_schema_extra`` of a request body: ``values`` as its OpenAPI ``examples``, each
+    of which works as it is on a fresh service; ``robot`` (``x-example-robot``) is the
+    built-in robot whose id goes in the path of a ``/robots/{robot_id}/...`` route."""
+    extra: dict[str, Any] = {"examples": list(values)}
+    if robot is not None:
+        extra["x-example-robot"] = robot
+    return extra
+
+
+#: The GLT palletizer at the first configuration of its paper's Table 2 (rad), and its pose.
+GLT_Q = [0.2618, 0.5236, 0.7854, 1.0472, 1.5708, 2.7925]
+GLT_POSE = [[-0.467, -0.5522, -0.6907, 783.71], [0.3022, 0.6344, -0.7115, -336.47],
+            [0.831, -0.541, -0.1294, 323.58], [0, 0, 0, 1]]
+#: The palletizer's swing of the README's motion plan, past a ball on the tool's way.
+GLT_SWING = {"start": [-1.0, 0.3, -0.3, 0.0, 0.5, 0.0],
+             "goal": {"q": [1.0, 0.3, -0.3, 0.0, 0.5, 0.0]},
+             "scene": {"objects": [{"type": "sphere", "id": "ball", "radius": 150,
+                                    "pose": [[1, 0, 0, 1367], [0, 1, 0, 0], [0, 0, 1, 1288],
+                                             [0, 0, 0, 1]]}]}}
 
 
 class StoreHealth(BaseModel):
@@ -118,6 +141,10 @@ class RobotSummary(BaseModel):
 
 
 class FKRequest(Body):
+    model_config = ConfigDict(json_schema_extra=body_examples(
+        {"q": GLT_Q}, {"q": [GLT_Q, [0, 0, 0, 0, 0, 0]], "frames": "all"},
+        robot="glt_palletizer"))
+
     q: joint_input(MAX_FK_CONFIGS) = Field(
         description="One configuration (dof values) or a list of them; rad or mm per joint "
         f"(at most {MAX_FK_CONFIGS} configurations, {MAX_FRAMES_CONFIGS} with frames='all')"
@@ -133,6 +160,9 @@ class FKResponse(BaseModel):
 
 
 class JacobianRequest(Body):
+    model_config = ConfigDict(json_schema_extra=body_examples({"q": GLT_Q},
+                                                              robot="glt_palletizer"))
+
     q: JointVector = Field(description="One configuration (dof values)")
 
 
@@ -152,6 +182,9 @@ class JacobianResponse(BaseModel):
 
 
 class IKRequest(Body):
+    model_config = ConfigDict(json_schema_extra=body_examples(
+        {"pose": GLT_POSE, "all_solutions": True}, robot="glt_palletizer"))
+
     pose: pose_input(MAX_IK_POSES) = Field(
         description=f"Target tool pose (4x4) or a list of at most {MAX_IK_POSES}")
     q0: JointVector | None = Field(
@@ -181,6 +214,9 @@ class IKResponse(BaseModel):
 
 
 class WorkspaceRequest(Body):
+    model_config = ConfigDict(json_schema_extra=body_examples(
+        {"samples": 30000, "return_points": 0, "projections": False}, robot="pile_driver"))
+
     samples: int = Field(
         DEFAULT_SAMPLES, ge=1, json_schema_extra={"maximum": MAX_SAMPLES},
         description=f"Monte Carlo samples (413 above {MAX_SAMPLES:,}: submit a 'workspace' "
@@ -259,6 +295,9 @@ class ViewerShowRequest(Body):
     """What the viewer shows: a robot (at ``q``), a finished job or a motion answer, and/or a
     stored scene (``"scene": null`` clears the scene shown)."""
 
+    model_config = ConfigDict(json_schema_extra=body_examples(
+        {"robot": "glt_palletizer", "q": [0.0, 0.3, -0.3, 0.0, 0.5, 0.0]}))
+
     robot: str | None = Field(None, max_length=64, description="Robot id to show")
     q: JointVector | None = Field(None, description="Configuration; default mid-limits")
     job: str | None = Field(None, max_length=64,
@@ -308,6 +347,10 @@ class JobKindOut(BaseModel):
 
 
 class DrillIKRequest(Body):
+    model_config = ConfigDict(json_schema_extra=body_examples(
+        {"holes": [[9000, 0, -500], [9000, 1000, 1000], [9000, -1000, 1000]], "d7": 4022,
+         "roll": 0}, robot="tunnel_drill_arm"))
+
     holes: bounded_list(Point3, MAX_DRILL_HOLES, min_length=1, what="holes",
                          per_call=True) = Field(
         description=f"Hole positions [x, y, z] on the face, mm (at most {MAX_DRILL_HOLES})"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field
+from pydantic import ConfigDict, Field
 
 from ..fields import (
     Coordinate,
@@ -17,7 +17,7 @@ from ..fields import (
     joint_batch,
     pose_type,
 )
-from .schemas import Body
+from .schemas import Body, body_examples
 
 __all__ = [
     "DEFAULT_GRID",
@@ -80,6 +80,12 @@ TimeScaling = Annotated[
 
 
 class TrajectoryRequest(Body):
+    model_config = ConfigDict(json_schema_extra=body_examples(
+        {"robot": "pile_driver", "time_scaling": "optimal", "limits": {"acceleration": 5.0},
+         "waypoints": [[0, 0.1, -0.9, -0.5, 0, 0], [0, 0.9, -0.1, -0.5, 0, 0]], "dt": 0.1},
+        {"waypoints": [[0, 0], [1, -0.5], [2, 0]], "durations": [1.0, 1.5],
+         "method": "quintic"}))
+
     method: Literal["quintic", "sextic", "bspline5", "smooth"] = Field(
         "quintic",
         description="quintic: one per segment, at rest at each waypoint unless velocities/"
@@ -132,6 +138,11 @@ class EllipsePath(Body):
 
 
 class CartesianRequest(Body):
+    model_config = ConfigDict(json_schema_extra=body_examples(
+        {"robot": "glt_palletizer", "path": {"kind": "line", "end": [1000, 200, 900]},
+         "points": 30, "time_scaling": "optimal",
+         "limits": {"velocity": 1.0, "acceleration": 2.0}}))
+
     robot: str = Field(max_length=64)
     path: Annotated[LinePath | EllipsePath, Field(discriminator="kind")]
     q0: bounded_list(JointValue, 32, min_length=1) | None = Field(

@@ -14,6 +14,7 @@ from ...fields import StrictModel, joint_input
 from ...responses import FastJSONRoute
 from ..common import collision_entry, joint_rows, resolve_scene
 from ..deps import RegistryDep, RobotDep
+from ..schemas import GLT_SWING, body_examples
 
 router = APIRouter(prefix="/robots", tags=["collision"], route_class=FastJSONRoute)
 
@@ -28,7 +29,12 @@ MAX_MARGIN_MM = 100_000.0
 
 
 class CollisionRequest(StrictModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, populate_by_name=True)
+    model_config = ConfigDict(
+        extra="forbid", allow_inf_nan=False, populate_by_name=True,
+        json_schema_extra=body_examples(
+            {"q": [GLT_SWING["start"], [0.0, 0.3, -0.3, 0.0, 0.5, 0.0]],
+             "scene": GLT_SWING["scene"]},
+            robot="glt_palletizer"))
 
     q: joint_input(MAX_COLLISION_CONFIGS) = Field(
         description="One configuration or a list of them (rad or mm per joint; at most "

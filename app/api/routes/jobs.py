@@ -13,7 +13,7 @@ import operator
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, Path, Query, Request, Response
-from pydantic import Field, ValidationError
+from pydantic import ConfigDict, Field, ValidationError
 from starlette.concurrency import run_in_threadpool
 
 from ...jobs.caps import MAX_PARAMS_BYTES, MAX_PARAMS_DEPTH, MAX_TIME_LIMIT_S
@@ -29,7 +29,7 @@ from ...jobs.manager import (
 from ...responses import FastJSONRoute
 from ..deps import RegistryDep, require_api_key
 from ..errors import http_error, not_found
-from ..schemas import Body, JobKindOut, JobRecordOut
+from ..schemas import GLT_SWING, Body, JobKindOut, JobRecordOut, body_examples
 
 router = APIRouter(prefix="/jobs", tags=["jobs"], route_class=FastJSONRoute)
 
@@ -49,6 +49,11 @@ JobResult = functools.reduce(operator.or_, (kind.result for kind in KINDS.values
 
 
 class JobRequest(Body):
+    model_config = ConfigDict(json_schema_extra=body_examples(
+        {"kind": "workspace", "params": {"robot": "glt_palletizer", "samples": 100000,
+                                         "seed": 1}},
+        {"kind": "motion", "params": {"robot": "glt_palletizer", **GLT_SWING}}))
+
     kind: str = Field(max_length=64,
                       description="Job kind, e.g. 'workspace' (see GET /jobs/kinds)")
     params: dict[str, Any] = Field(
