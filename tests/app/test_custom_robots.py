@@ -246,6 +246,7 @@ def test_body_not_a_json_object_is_422(client, body):
     assert error_locs(r) == [["body"]]
 
 
+@pytest.mark.slow
 def test_oversize_body_is_413(client):
     data = {**SDH_ARM, "id": "big", "notes": "x" * (300 * 1024)}
     r = client.post("/robots", json=data)

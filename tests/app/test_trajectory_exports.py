@@ -90,6 +90,7 @@ def _seconds(stamp: dict) -> float:
 
 
 # ---- motion jobs through the service --------------------------------------------------------
+@pytest.mark.slow
 def test_joint_trajectory_of_a_motion_job_has_the_stored_samples_at_each_time(served):
     c, ids = served
     job_id = ids["glt"]

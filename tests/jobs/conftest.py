@@ -27,6 +27,14 @@ def jobs_client(tmp_path):
         yield c
 
 
+@pytest.fixture(scope="module")
+def checking_client(tmp_path_factory):
+    """A TestClient whose job backend does not run (no lifespan), shared by a module's tests:
+    for what a submission answers (422, 404), when nothing is queued."""
+    data_dir = tmp_path_factory.mktemp("checking")
+    return TestClient(create_app(Settings(no_viewer=True, data_dir=data_dir)))
+
+
 def wait_for(client, job_id: str, statuses=("succeeded", "failed", "cancelled"),
              timeout: float = 60.0) -> dict:
     deadline = time.monotonic() + timeout

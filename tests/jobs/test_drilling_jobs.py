@@ -70,8 +70,8 @@ def run(client, kind: str, params: dict) -> dict:
     ("sequence", {"holes": FACE, "cost": "time", "start": [9000, 0, 40000]}, ["start"],
      "start: the middle arm cannot drill there"),
 ])
-def test_bad_params_are_422_naming_the_field(client, kind, params, loc, words):
-    r = submit(client, kind, params)
+def test_bad_params_are_422_naming_the_field(checking_client, kind, params, loc, words):
+    r = submit(checking_client, kind, params)
     assert r.status_code == 422, r.text
     err = r.json()["detail"][0]
     assert err["loc"][: 2 + len(loc)] == ["body", "params", *loc], err

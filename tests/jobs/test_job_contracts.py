@@ -124,6 +124,7 @@ def test_the_cases_cover_every_kind():
     assert {kind for _, kind, _ in CASES} == set(KINDS)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case, kind", [(case, kind) for case, kind, _ in CASES])
 def test_a_real_job_result_matches_the_published_result_schema(published, results, case,
                                                                 kind):

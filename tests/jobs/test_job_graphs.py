@@ -139,6 +139,7 @@ def reference_workspace(model: RobotModel, n: int, seed: int, k: int) -> dict:
 WS = {"robot": "pile_driver", "samples": 4321, "seed": 5, "return_points": 700}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("change", [{}, {"projections": False, "return_points": 0},
                                     {"samples": 4500, "voxel": 250.0, "return_points": 4500},
                                     {"robot": "hyper_redundant_9dof", "seed": 11}])
@@ -204,6 +205,7 @@ def test_workspace_of_a_planar_arm_is_its_annulus(monkeypatch):
     assert len(P) == 50 and np.all((r > 400 - 1e-6) & (r < 1600 + 1e-6))
 
 
+@pytest.mark.slow
 def test_workspace_memory_is_bounded_by_the_part(monkeypatch):
     """600,000 samples in parts of 50,000: the job never holds its samples' points (14.4 MB;
     a part's take some 2 MB to compute, and each part's voxels and images some 0.15 MB to

@@ -95,12 +95,12 @@ def error(r, status: int = 422) -> dict:
     ("tracking", {"task": LINE, "q0": [1e300] * 9}, ["q0", 0], "less than"),
     ("sleep", {"seconds": 1e12}, ["seconds"], "less than"),
 ])
-def test_a_knob_over_its_cap_is_422_naming_it(client, kind, params, loc, words):
-    before = len(client.get("/jobs").json())
-    err = error(post(client, kind, params))
+def test_a_knob_over_its_cap_is_422_naming_it(checking_client, kind, params, loc, words):
+    before = len(checking_client.get("/jobs").json())
+    err = error(post(checking_client, kind, params))
     assert err["loc"] == ["body", "params", *loc], err
     assert words in err["msg"], err
-    assert len(client.get("/jobs").json()) == before  # nothing queued
+    assert len(checking_client.get("/jobs").json()) == before  # nothing queued
 
 
 def test_knobs_within_their_caps_are_kept_as_given(client):

@@ -207,10 +207,10 @@ def _error(r, status: int = 422) -> tuple[list, str]:
     ({"scene": {"objects": [{"type": "box", "size": [1, 1]}]}},
      ["body", "params", "scene", "objects", 0, "size"]),
 ])
-def test_bad_params_are_422_naming_the_field(jobs_client, params, loc):
+def test_bad_params_are_422_naming_the_field(checking_client, params, loc):
     body = {"robot": ROBOT, "start": START, "goal": {"q": GOAL}} | params
     body = {k: v for k, v in body.items() if v is not None}
-    assert _error(_submit(jobs_client, body))[0] == loc
+    assert _error(_submit(checking_client, body))[0] == loc
 
 
 def test_unknown_robot_and_scene_are_404(jobs_client):

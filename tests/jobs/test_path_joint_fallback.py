@@ -190,6 +190,7 @@ def _bar_mesh(center, size) -> dict:
     return {"type": "mesh", "id": "bar", "vertices": V.tolist(), "faces": F}
 
 
+@pytest.mark.slow
 def test_a_stored_scenes_own_objects_are_what_the_joint_space_motion_avoids():
     """A stored scene becomes conservative obstacles for the tool path and its own objects
     (a mesh here) for the joint-space motion, recorded in the params; a plain path (no robot)

@@ -58,6 +58,7 @@ def test_a_failing_step_says_why(runner):
     assert runner.alive()
 
 
+@pytest.mark.slow
 def test_a_stop_kills_the_child_at_once():
     r = Runner()
     pid = r.process.pid

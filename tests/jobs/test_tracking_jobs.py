@@ -47,8 +47,8 @@ def submit(client, **params):
         ({"task": LINE, "tune": "simplex"}, "tune"),
     ],
 )
-def test_bad_params_are_422_naming_the_field(client, params, field):
-    r = submit(client, **params)
+def test_bad_params_are_422_naming_the_field(checking_client, params, field):
+    r = submit(checking_client, **params)
     assert r.status_code == 422, r.text
     assert field in str(r.json()["detail"]), r.text
 

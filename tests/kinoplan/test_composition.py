@@ -35,6 +35,7 @@ def test_the_scan_sees_imports_inside_functions(tmp_path):
     assert _imports(module) == {"os", "web.viewer", "kinoplan.x"}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("package", ["app", "kinematics", "planning"])
 def test_the_service_never_imports_the_viewer_or_the_root(package):
     offenders = sorted(

@@ -222,6 +222,7 @@ def test_spheres_free_means_exact_free(sa, sb, rot, shift):
         assert not exact
 
 
+@pytest.mark.slow
 @settings(derandomize=True, database=None, max_examples=5, deadline=None)
 @given(st.floats(5, 120), st.floats(5, 120), st.floats(5, 120), vec)
 def test_primitive_solids_are_covered(a, b, c, rot):
@@ -320,6 +321,7 @@ def _three_links(disabled=()) -> Robot:
     return Robot(model, links, adjacent, frozenset(frozenset(p) for p in disabled), mesh)
 
 
+@pytest.mark.slow
 def test_self_collision_skips_adjacent_and_disabled_pairs():
     cm = RobotCollisionModel.from_imported(_three_links(), pair_tables=False)
     assert [(cm.names[a], cm.names[b]) for a, b in cm.pairs] == [("base", "tip")]
@@ -337,6 +339,7 @@ def test_self_collision_skips_adjacent_and_disabled_pairs():
     assert not check(cm, q, self_collision=False).collides.any()
 
 
+@pytest.mark.slow
 def test_pair_tables_agree_with_spheres_and_the_exact_stage():
     """base and tip are two joints apart: with tables (the default) the pair is looked up
     instead of spheres, and the answers after the exact stage are the same."""
@@ -410,6 +413,7 @@ def test_capsule_robots_skip_neighbours_and_links_held_in_contact():
 
 
 # ---- batches and the fast path -----------------------------------------------------------------
+@pytest.mark.slow
 def test_batch_equals_one_by_one():
     robot = _three_links()
     cm = RobotCollisionModel.from_imported(robot)

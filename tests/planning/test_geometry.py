@@ -114,6 +114,7 @@ def test_kernels_agree_with_their_python_twins(name):
                                          cells, meta)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", BUILTIN)
 def test_bounds_contain_the_object_and_the_json_round_trips(name):
     """Points inside an object (negative distance) lie within its bounds; ``to_dict`` reads
@@ -210,6 +211,7 @@ def test_drilling_envelopes_and_point_paths_share_the_segment_distance():
     assert math.isfinite(float(d))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", BUILTIN)
 def test_path_covers_contain_the_shape(name):
     """A stored scene's object becomes point-path obstacles (its ``path_cover``) that are

@@ -105,6 +105,7 @@ def assert_valid(cm, scene, result, start, goal, step):
 
 
 # ---- certified problems --------------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize("gap", [300.0, 2 * BALL + 10.0])
 def test_gantry_passes_the_wall_through_its_gap(gantry, gap):
     """The only way from one side to the other is through the gap: some checked state sits
@@ -221,6 +222,7 @@ def test_malformed_input_names_the_field(gantry):
 
 
 # ---- reproducibility, planners, time -------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize("planner", ["auto", "rrt_connect", "rrt_star"])
 def test_same_seed_same_path(gantry, planner):
     _, cm = gantry
@@ -236,6 +238,7 @@ def test_same_seed_same_path(gantry, planner):
         assert_valid(cm, scene, r, [0.0, 600.0], [900.0, 500.0], step=0.25)
 
 
+@pytest.mark.slow
 def test_rrt_star_uses_its_time_and_stays_near_the_shortest(gantry):
     """The asymptotically optimal mode keeps improving until the time limit; on the gap
     problem its simplified path is within 10 % of the shortest (by construction at least
@@ -250,6 +253,7 @@ def test_rrt_star_uses_its_time_and_stays_near_the_shortest(gantry):
     assert shortest - 1e-6 <= res.length <= 1.10 * (shortest + 100.0)
 
 
+@pytest.mark.slow
 def test_without_compiled_kernels_the_answers_are_the_same(gantry, monkeypatch):
     import planning.motion.checker as checker_module
 

@@ -113,6 +113,7 @@ def test_the_pile_drivers_site_lies_where_its_tool_goes(pile):
     assert min(ends[:, 1]) < radial.min() and max(ends[:, 1]) > radial.max()
 
 
+@pytest.mark.slow
 def test_the_tunnel_surrounds_the_drilling_arm_and_closes_at_the_face(drill):
     model, cm, scene, _ = drill
     face = face_pattern(FacePattern())
@@ -174,6 +175,7 @@ def test_pile_driver_motions_are_verified(pile):
             assert len(res.path) > 2  # it had to go round (over) the wall
 
 
+@pytest.mark.slow
 def test_drill_arm_motions_inside_the_tunnel_are_verified(drill):
     model, cm, scene, checker = drill
     problems = tunnel_problems(checker, 2, seed=5)

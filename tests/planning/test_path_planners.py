@@ -63,6 +63,7 @@ EXPECTED_STATUS = {(algorithm, layout): PlanStatus.OK
 STRAIGHT = 99.0 * 3**0.5
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
 @pytest.mark.parametrize("layout", [0, 1])
 def test_every_planner_returns_a_verified_path(algorithm, layout):
@@ -84,6 +85,7 @@ WALL_STATUS = {"wolfpack": PlanStatus.COLLISION, "wolfpack_improved": PlanStatus
                "rrt_star": PlanStatus.BUDGET_SPENT}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
 def test_a_wall_gives_an_honest_failure(algorithm):
     wall = Scene.create([[0, 0, 0], [100, 100, 100]],
@@ -97,6 +99,7 @@ def test_a_wall_gives_an_honest_failure(algorithm):
         assert "obstacles[0]" in res.message  # the obstacle hit is named
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algorithm", ALGORITHMS)
 def test_seeded_runs_are_reproducible(algorithm):
     scene = toy_scene(2)
@@ -133,6 +136,7 @@ def test_improved_wolf_pack_with_paper_parameters():
     assert np.all(np.diff(res.convergence) <= 0)  # best-so-far never rises
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("layout", [0, 1])
 def test_auto_is_within_one_percent_of_the_certified_shortest_path(layout):
     """Its time goal (under 1 s) is benchmarks/bench_speed_goals.py's."""

@@ -266,6 +266,7 @@ def test_time_order_saves_boom_time_on_a_face(middle_arm_face):
     assert np.array_equal(again.order, res.order) and again.time_s == res.time_s
 
 
+@pytest.mark.slow
 def test_sequence_arm_keeps_the_distance_order_by_default(middle_arm_face):
     model, H, park = middle_arm_face
     q = np.array([r.q for r in __import__("kinematics.drilling", fromlist=["drill_ik"])

@@ -97,6 +97,7 @@ def test_a_shared_value_is_one_outcome(enums):
         assert isinstance(cls.OK, str) and isinstance(cls.OK, Status)
 
 
+@pytest.mark.slow
 def test_the_service_and_viewer_define_no_status_enum_of_their_own():
     """``app`` and ``web`` are read, not imported (the viewer pulls in its GUI stack): any
     class there named ``...Status`` must not be a fresh enum."""

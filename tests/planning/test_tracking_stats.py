@@ -60,6 +60,7 @@ def test_summary_columns_are_the_papers():
     assert row.best_run == 0
 
 
+@pytest.mark.slow
 def test_untuned_pi_row_repeats_one_deterministic_run(table_and_progress):
     table, _ = table_and_progress
     base = table.baseline

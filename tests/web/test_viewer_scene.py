@@ -494,6 +494,7 @@ def test_the_drawable_kinds_are_the_kinds_with_a_drawer():
         plan_from_result("echo", {}, {"value": 1}, models=builtin_model)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["workspace", "path", "sequence", "multiarm", "tracking"])
 def test_every_drawable_kind_is_drawn_from_its_typed_result(api, real_jobs, kind):
     from app.jobs.catalog import KINDS
@@ -567,6 +568,7 @@ def _changed(data: dict, path: str, value) -> dict:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind, where, path, value, words", [
     ("workspace", "result", "points.0", [1, 2], "result.points.0: List should have at least 3"),
     ("workspace", "result", "volume", "big", "result.volume:"),
