@@ -37,6 +37,7 @@ JOB_PLACEHOLDER = "JOBID"
 NOT_2XX: dict[tuple[str, str], tuple[int, str]] = {
     ("GET", rf"/jobs/{JOB_PLACEHOLDER}/result"): (409, "the 40 s tracking job has not run"),
     ("GET", rf"/jobs/{JOB_PLACEHOLDER}/plot"): (409, "the 40 s tracking job has not run"),
+    ("GET", rf"/jobs/{JOB_PLACEHOLDER}/trajectory(\?.*)?"): (409, "the tracking job has not run"),
     ("POST", r"/viewer/show"): (503, "the viewer is not started here (tests/web covers it)"),
 }
 
