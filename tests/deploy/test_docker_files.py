@@ -292,6 +292,14 @@ def test_compose_services(compose, dockerfile):
     assert "volumes" not in worker and "volumes" not in scheduler
 
 
+def test_compose_file_is_read_by_compose_v2_and_docker_compose_1_29(compose):
+    """Top-level keys both read: services, volumes, networks and extension fields (x-);
+    docker-compose 1.29 refuses `name` (a Compose v2 addition)."""
+    assert set(compose) - {"services", "volumes", "networks", "configs", "secrets"} <= {
+        key for key in compose if key.startswith("x-")}
+    assert "name" not in compose and "version" not in compose
+
+
 def test_compose_publishes_nothing_beyond_this_machine(compose):
     """The API's writes and the viewer are open without a key: no service publishes a port
     on every interface, or on an address taken from the environment."""
