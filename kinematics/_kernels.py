@@ -941,7 +941,9 @@ def finish_branches(C, prismatic, offset, lower, upper, T, branches, q0, has_q0)
                 d += (q[i] - q0[i]) ** 2
         inside[r] = ok
         order_keys[r, 0] = 0.0 if ok else 1.0
-        order_keys[r, 1] = math.sqrt(d)
+        # To 1e-9 (as ik.result): branches as near as each other (+pi and -pi from 0) keep
+        # numpy.unique's order, not the last bit of a sum.
+        order_keys[r, 1] = math.floor(math.sqrt(d) * 1e9 + 0.5) / 1e9
     order = _merge_sort(np.arange(m), order_keys)
     sols = np.empty((m, n))
     errs = np.empty((m, 2))

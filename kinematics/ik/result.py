@@ -110,7 +110,7 @@ def finish_analytic(
     target b is unreachable if no branch reaches it; ``singular (B,)``. Each branch is checked
     by FK against its target (so an algebra slip can never return a wrong answer), expanded
     into the extra turns the limits allow, and ordered: within limits first, nearest ``q0``
-    first.
+    (without it: nearest the middle of the joint ranges, ``model.mid_configuration()``) first.
     """
     B = T_target.shape[0]
     valid = np.all(np.isfinite(branches), axis=1)
@@ -127,7 +127,11 @@ def finish_analytic(
     _, first = np.unique(keys, axis=0, return_index=True)
     expanded, own, err = expanded[first], own[first], err[first]
     inside = model.within_limits(expanded)
-    dist = np.zeros(len(expanded)) if q0 is None else np.linalg.norm(expanded - q0, axis=1)
+    # Without q0, the branch nearest the middle of the joint ranges comes first: one answer
+    # for one pose, whatever order the closed form produced its branches in.
+    ref = model.mid_configuration() if q0 is None else q0
+    # To 1e-9: branches as near as each other (+pi and -pi from 0) keep np.unique's order.
+    dist = np.floor(np.linalg.norm(expanded - ref, axis=1) * 1e9 + 0.5) / 1e9
     order = np.lexsort((dist, ~inside, own))
     expanded, own, err, inside = expanded[order], own[order], err[order], inside[order]
     bounds = np.searchsorted(own, np.arange(B + 1))
@@ -147,10 +151,9 @@ def finish_one(
     """``finish_analytic`` for one target ``(4, 4)`` on the compiled kernels ``K``
     (``_kernels.finish_branches``): the same checks, turns, order and messages."""
     ch = chain_of(model)
-    has_q0 = q0 is not None
-    q0a = c_array(q0) if has_q0 else np.zeros(model.dof)
+    ref = c_array(model.mid_configuration() if q0 is None else q0)
     sols, errs, inside = K.finish_branches(ch.C, ch.prismatic, ch.offset, ch.lower, ch.upper,
-                                           T_target, branches, q0a, has_q0)
+                                           T_target, branches, ref, True)
     return _one_result(model, method, sols, errs, inside, reason, singular)
 
 

@@ -463,3 +463,22 @@ def test_switched_off_by_environment_loads_no_numba():
                           text=True, timeout=120, check=True,
                           env={**os.environ, "KINOPLAN_JIT": "0"})
     assert done.stdout.split() == ["True", "False", "False", "True", "(6,", "6)"]
+
+
+def test_without_q0_the_branch_nearest_mid_range_comes_first():
+    """One answer for one pose without q0: every branch is on the pose (FK), and the one
+    answered is the in-limit branch nearest the middle of the joint ranges."""
+    model = builtin_model("glt_palletizer")
+    q_given = np.array([0.2618, 0.5236, 0.7854, 1.0472, 1.5708, 2.7925])
+    T = fk(model, q_given)
+    (full,) = solve_ik(model, T, all_solutions=True)
+    assert len(full.solutions) > 2
+    for q in full.solutions:
+        np.testing.assert_allclose(fk(model, q), T, atol=1e-6)
+    mid = (np.asarray(model.lower) + np.asarray(model.upper)) / 2
+    gaps = np.linalg.norm(full.solutions - mid, axis=1)
+    assert np.linalg.norm(full.q - mid) <= gaps.min() + 1e-9
+    (best,) = solve_ik(model, T)
+    np.testing.assert_allclose(best.q, full.q, atol=1e-12)
+    batch = solve_ik(model, np.stack([T, T]))
+    np.testing.assert_allclose(batch[1].q, full.q, atol=1e-12)
