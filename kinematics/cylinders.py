@@ -13,8 +13,9 @@ mechanisms cover its arm, each a frozen dataclass with its pin geometry as data 
   joint J; one lengthens as the other shortens.
 
 Every map is vectorised: angles ``theta (*,)`` in rad -> lengths ``(*,)`` in mm (``(*, 2)``
-for the swing pair), and back. ``stroke = length - min_length`` (``min_length`` is the
-retracted, ``max_length`` the extended length). Cylinder speed (mm/s) is
+for the swing pair), and back. ``stroke = length - min_length``, the current extension
+(``min_length`` is the retracted, ``max_length`` the extended length); the full travel,
+``max_length - min_length``, is called travel, never stroke. Cylinder speed (mm/s) is
 ``dL/dtheta * theta_dot``.
 
 ``CylinderSet.from_model(model)`` reads the list under the model's ``"cylinders"`` key (kept in
@@ -224,23 +225,23 @@ def _check_cylinder(
         problems.append(
             f"{name}: at the joint limit {_deg(theta[lo_i])} the cylinder is {lo:.3f} mm, "
             f"{lo - min_length:.3f} mm longer than its retracted length {min_length:.3f} mm: "
-            "the joint stop, not the cylinder, ends the motion (stroke wasted)"
+            "the joint stop, not the cylinder, ends the motion (travel wasted)"
         )
     if hi > max_length + tol:
         problems.append(
             f"{name}: at the joint limit {_deg(theta[hi_i])} the cylinder would be {hi:.3f} mm, "
-            f"longer than its extended length {max_length:.3f} mm: it runs out of stroke "
+            f"longer than its extended length {max_length:.3f} mm: it runs out of travel "
             f"{hi - max_length:.3f} mm before the joint reaches its limit"
         )
     elif hi < max_length - max_margin:
         problems.append(
             f"{name}: at the joint limit {_deg(theta[hi_i])} the cylinder is {hi:.3f} mm, "
             f"{max_length - hi:.3f} mm shorter than its extended length {max_length:.3f} mm: "
-            "the joint stop, not the cylinder, ends the motion (stroke wasted)"
+            "the joint stop, not the cylinder, ends the motion (travel wasted)"
         )
     if max_length - min_length >= min_length:
         problems.append(
-            f"{name}: stroke {max_length - min_length:.3f} mm is not below the retracted length "
+            f"{name}: travel {max_length - min_length:.3f} mm is not below the retracted length "
             f"{min_length:.3f} mm: a hydraulic cylinder's barrel must hold its rod"
         )
     return problems

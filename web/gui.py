@@ -77,14 +77,16 @@ def joint_label(model: RobotModel, i: int) -> str:
 
 
 def cylinder_table(cylinders: Sequence[CylinderDrawing]) -> str:
-    """Markdown table of cylinder lengths and strokes (mm)."""
+    """Markdown table of cylinder lengths and strokes (mm): the stroke (the current extension,
+    as the API's ``stroke``) and the full travel in one cell, ``121.3 / 231.4``, so the two
+    numbers never run together in a narrow panel."""
     if not cylinders:
         return ""
-    rows = ["| cylinder | joint | length mm | stroke mm | of |", "|---|---|--:|--:|--:|"]
+    rows = ["| cylinder | joint | length mm | stroke / travel mm |", "|---|---|--:|--:|"]
     for c in cylinders:
-        flag = "" if c.within_stroke else " ⚠ outside stroke"
+        flag = "" if c.within_stroke else " ⚠ outside its travel"
         rows.append(f"| {plain(c.name)} | {plain(c.joint)} | {c.length:.1f} | "
-                    f"{c.stroke:.1f}{flag} | {c.max_length - c.min_length:.1f} |")
+                    f"{c.stroke:.1f} / {c.max_length - c.min_length:.1f}{flag} |")
     return "\n".join(rows)
 
 

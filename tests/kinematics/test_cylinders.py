@@ -245,9 +245,9 @@ def test_check_reports_each_kind_of_mismatch():
     (msg,) = _boom(min_length=lo + 10).check()
     assert msg.startswith("boom:") and "bottoms out 10.000 mm before the joint" in msg
     (msg,) = _boom(max_length=hi - 10).check()
-    assert "runs out of stroke 10.000 mm before the joint" in msg
+    assert "runs out of travel 10.000 mm before the joint" in msg
     (msg,) = _boom(min_length=lo - 5).check()
-    assert "stroke wasted" in msg
+    assert "travel wasted" in msg
     assert _boom(min_length=lo - 0.5).check() == []  # a margin under MAX_STROKE_MARGIN
     # Pin angle swept through 180 deg: a dead point, not monotonic.
     (msg,) = _boom(phi0=math.radians(150)).check()

@@ -165,7 +165,7 @@ def test_a_custom_robots_cylinder_and_joint_names_show_as_text(api):
     rows = [line for line in table.content.splitlines() if line.startswith("| ")]
     # Still a table of five columns (escaped pipes split no cell), one row per cylinder.
     assert len(rows) == 1 + len(v._arms[""].nodes.drawing.cylinders)
-    assert all(len(re.findall(r"(?<!\\)\|", row)) == 6 for row in rows)
+    assert all(len(re.findall(r"(?<!\\)\|", row)) == 5 for row in rows)  # four columns
 
 
 def test_a_failed_jobs_error_shows_as_text_in_the_workspace_panel(api):
@@ -178,3 +178,16 @@ def test_a_failed_jobs_error_shows_as_text_in_the_workspace_panel(api):
     v._poll_workspace()
     assert_panel_inert(v.gui.workspace, error, "w1")
     assert "failed" in v.gui.workspace.content
+
+
+def test_the_cylinder_table_keeps_stroke_and_travel_apart():
+    """The stroke (the current extension, as the API says) and the full travel in one cell
+    with a separator: never two numbers run together ("121.3231.4")."""
+    from web.gui import cylinder_table
+    from web.scene import CylinderDrawing
+
+    c = CylinderDrawing(name="boom", joint="boom", barrel_pin=np.zeros(3), rod_pin=np.ones(3),
+                        length=489.99, min_length=368.71, max_length=600.07, within_stroke=True)
+    header, _, row = cylinder_table([c]).split("\n")
+    assert "stroke / travel mm" in header
+    assert row.split("|")[4].strip() == "121.3 / 231.4"
