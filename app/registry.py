@@ -236,7 +236,8 @@ class RobotRegistry(StoreMirror):
         entry = self.stored_collision(robot_id)
         if entry is None:
             raise CollisionNotReady(robot_id, f"the collision model of '{robot_id}' is "
-                                    "still being built; try again in a minute")
+                                    f"still being built (seconds): GET /robots/{robot_id}/"
+                                    "collision waits for it, then submit again")
         from kinematics.urdf_import import mesh_to_bytes
 
         def b64(data: bytes) -> str:

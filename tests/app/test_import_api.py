@@ -114,6 +114,8 @@ def test_import_serves_stores_and_exports_the_robot(app_dir):
     names = [j["name"] for j in model["joints"]]
     assert names == [j.name for j in builtin_model("glt_palletizer").joints]
     assert model["name"] == "GLT from URDF"
+    # The stored robot is the model answered (the answer adds its collision model's state).
+    assert model.pop("collision_model")["state"] == "on_first_use"
     assert client.get("/robots/glt_urdf").json() == model
     assert "glt_urdf" in [r["id"] for r in client.get("/robots").json()]
 
@@ -172,7 +174,11 @@ def test_import_serves_stores_and_exports_the_robot(app_dir):
 def test_the_collision_model_is_built_at_import_and_stored(app_dir):
     client = app_dir(prebuild=True)
     with client:  # the lifespan runs: the build is a task on the service's loop
-        assert _import(client, "glt_cm", _archive(), srdf=SRDF.encode()).status_code == 201
+        r = _import(client, "glt_cm", _archive(), srdf=SRDF.encode())
+        assert r.status_code == 201
+        # The answer says a build is under way, and how to wait for it.
+        assert r.json()["collision_model"]["state"] == "building"
+        assert "GET /robots/glt_cm/collision" in r.json()["collision_model"]["message"]
         described = client.get("/robots/glt_cm/collision")  # waits for the build if needed
         assert described.status_code == 200
         links = {link["name"]: link for link in described.json()["links"]}
@@ -194,7 +200,16 @@ def test_a_bare_urdf_without_meshes_imports(client):
     r = client.post("/robots/import", files={"file": ("pd.urdf", text.encode(), "text/xml")},
                     data={"id": "pd_urdf"})
     assert r.status_code == 201, r.text
+    assert r.json()["collision_model"]["state"] == "none"  # no <collision> to build from
     assert client.get("/robots/pd_urdf/archive").status_code == 200
+
+
+def test_the_import_answer_says_when_the_collision_model_is_built(client):
+    r = _import(client, "glt_later", _archive())
+    assert r.status_code == 201, r.text
+    said = r.json()["collision_model"]
+    assert said["state"] == "on_first_use"  # this app does not build at import
+    assert "GET /robots/glt_later/collision" in said["message"]
 
 
 def _error(r) -> tuple[list, str]:

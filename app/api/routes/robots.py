@@ -293,7 +293,21 @@ async def import_robot_route(
     except RobotConflictError as exc:
         raise conflict(["id"], str(exc)) from None
     # Its collision model is built now, in a compute worker, and stored: the first collision
-    # query finds it ready (or waits for this build).
+    # query finds it ready (or waits for this build). The answer says so, and how to wait.
+    answer = robot.model.to_dict()
+    if not any(link.collision for link in robot.links):
+        answer["collision_model"] = {
+            "state": "none", "message": "no <collision> geometry: nothing is checked for "
+            "collision (motion plans ignore the robot's own shape)"}
+        return answer
+    wait = f"GET /robots/{id}/collision waits for it and answers when it is ready"
     if request.app.state.settings.prebuild_collision:
         start_build(request.app.state, id)
-    return robot.model.to_dict()
+        answer["collision_model"] = {
+            "state": "building", "message": "being built from the collision geometry in a "
+            f"worker (seconds; collision queries and motion wait for it, motion jobs answer "
+            f"409 until then): {wait}"}
+    else:
+        answer["collision_model"] = {
+            "state": "on_first_use", "message": f"built at the first collision query: {wait}"}
+    return answer
