@@ -12,10 +12,10 @@ import math
 
 import numpy as np
 import pytest
+from ur5_like import UR5_DH, box, off_line, ur5_fk, ur5_model
 
 from kinematics.errors import FieldError
 from kinematics.library import builtin_model
-from kinematics.model import RobotModel
 from planning.collision import CollisionScene, RobotCollisionModel, collides
 from planning.motion import MotionChecker
 from planning.motion.cartesian import CartesianStatus, plan_arc, plan_line
@@ -23,24 +23,8 @@ from planning.motion.cartesian import CartesianStatus, plan_arc, plan_line
 pytestmark = pytest.mark.usefixtures("motion_kernels")
 
 PI = math.pi
-#: UR5 standard D-H (a, alpha, d), mm.
-UR5_DH = [(0.0, PI / 2, 89.159), (-425.0, 0.0, 0.0), (-392.25, 0.0, 0.0),
-          (0.0, PI / 2, 109.15), (0.0, -PI / 2, 94.65), (0.0, 0.0, 82.3)]
 Q0 = np.array([0.0, -1.2, 1.5, -1.9, -1.57, 0.3])
 TOL_P, TOL_R = 0.1, 1e-3
-
-
-def ur5_fk(q: np.ndarray) -> np.ndarray:
-    """Tool poses ``(n, 4, 4)`` of ``q (n, 6)``: RotZ(q) TransZ(d) TransX(a) RotX(alpha)."""
-    out = []
-    for row in np.atleast_2d(q):
-        T = np.eye(4)
-        for (a, alpha, d), th in zip(UR5_DH, row):
-            ct, st, ca, sa = math.cos(th), math.sin(th), math.cos(alpha), math.sin(alpha)
-            T = T @ np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st],
-                              [0.0, sa, ca, d], [0.0, 0.0, 0.0, 1.0]])
-        out.append(T)
-    return np.array(out)
 
 
 def rotation(axis, angle: float) -> np.ndarray:
@@ -54,26 +38,9 @@ def angle_between(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(c, -1.0, 1.0))
 
 
-def on_segment(P: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance of points ``P`` from the line through ``p0``, ``p1`` and their parameter."""
-    d = p1 - p0
-    t = (P - p0) @ d / (d @ d)
-    return np.linalg.norm(P - p0 - t[:, None] * d, axis=1), t
-
-
-def box(oid: str, size, at) -> dict:
-    T = np.eye(4)
-    T[:3, 3] = at
-    return {"type": "box", "id": oid, "size": list(size), "pose": T.tolist()}
-
-
 @pytest.fixture(scope="module")
 def ur5():
-    model = RobotModel.from_dict({
-        "id": "ur5_like", "name": "UR5-like", "convention": "sdh",
-        "joints": [{"name": f"j{i + 1}", "type": "revolute", "a": a, "alpha": al, "d": d,
-                    "lower": -2 * PI, "upper": 2 * PI}
-                   for i, (a, al, d) in enumerate(UR5_DH)]})
+    model = ur5_model()
     cm = RobotCollisionModel.from_model(model, link_radius=40.0)
     return model, cm, MotionChecker(cm)
 
@@ -101,7 +68,7 @@ def test_a_free_line_is_followed_to_the_end_on_the_line(ur5):
     np.testing.assert_array_equal(res.path[0], Q0)
     T = ur5_fk(res.path)
     np.testing.assert_allclose(T, res.poses, atol=1e-9)
-    dist, t = on_segment(T[:, :3, 3], T0[:3, 3], target[:3, 3])
+    dist, t = off_line(T[:, :3, 3], T0[:3, 3], target[:3, 3])
     assert dist.max() <= TOL_P
     # Evenly along the line, at most 5 mm apart, from the start to the target.
     np.testing.assert_allclose(t, np.arange(n + 1) / n, atol=TOL_P / 180.0)
@@ -130,7 +97,7 @@ def test_slerp_turns_the_tool_evenly_and_hold_keeps_it(ur5):
     assert angle_between(Th[:, :3, :3], T0[:3, :3]).max() <= TOL_R
     assert np.linalg.norm(Th[-1, :3, 3] - target[:3, 3]) <= TOL_P
     # Slerped: the tool turns about the world z axis, by 0.4 s at the place s along the line.
-    _, t = on_segment(Ts[:, :3, 3], T0[:3, 3], target[:3, 3])
+    _, t = off_line(Ts[:, :3, 3], T0[:3, 3], target[:3, 3])
     ideal = np.array([rotation([0, 0, 1], 0.4 * s) @ T0[:3, :3] for s in t])
     assert angle_between(Ts[:, :3, :3], ideal).max() <= TOL_R + 1e-6
     assert angle_between(Ts[-1, :3, :3], target[:3, :3]) <= TOL_R
@@ -207,7 +174,7 @@ def test_a_target_out_of_reach_ends_unreachable_with_the_fraction_done(ur5):
     assert res.status is CartesianStatus.UNREACHABLE, res.message
     assert 0.0 < res.fraction < 1.0
     T = ur5_fk(res.path)
-    dist, t = on_segment(T[:, :3, 3], p0, target[:3, 3])
+    dist, t = off_line(T[:, :3, 3], p0, target[:3, 3])
     assert dist.max() <= TOL_P
     assert t[-1] == pytest.approx(res.fraction, abs=1e-4)
     assert res.fraction == pytest.approx(res.s[-1])
@@ -227,7 +194,7 @@ def test_a_wrist_flip_is_a_discontinuity(ur5):
     assert 0.0 < res.fraction < 0.5
     assert "'j4'" in res.message or "'j6'" in res.message
     assert abs(math.sin(res.path[-1, 4])) < 0.05          # near the wrist singularity
-    dist, _ = on_segment(ur5_fk(res.path)[:, :3, 3], T0[:3, 3], target[:3, 3])
+    dist, _ = off_line(ur5_fk(res.path)[:, :3, 3], T0[:3, 3], target[:3, 3])
     assert dist.max() <= TOL_P
     fine = plan_line(checker, q, target, orientation="hold", max_step=1.0)
     assert fine.status is CartesianStatus.OK, fine.message
@@ -359,7 +326,7 @@ def test_the_nine_joint_arm_uses_its_null_space_to_stay_off_its_limits():
         assert res.status is CartesianStatus.OK, res.message
         assert np.all(res.path >= lo) and np.all(res.path <= hi)
         T = fk(model, res.path)
-        dist, _ = on_segment(T[:, :3, 3], T0[:3, 3], target[:3, 3])
+        dist, _ = off_line(T[:, :3, 3], T0[:3, 3], target[:3, 3])
         assert dist.max() <= TOL_P
         assert angle_between(T[:, :3, :3], T0[:3, :3]).max() <= TOL_R
     margin_on = np.minimum(on.path - lo, hi - on.path).min(axis=1)
@@ -414,7 +381,7 @@ def test_an_imported_seven_joint_arm_follows_a_line():
     # The model's tool frame is the chain's tip link (l7), posed by the URDF's own chain.
     assert robot.tip_link == "l7"
     T = robot.link_poses(res.path)[:, [link.name for link in robot.links].index("l7")]
-    dist, t = on_segment(T[:, :3, 3], T0[:3, 3], target[:3, 3])
+    dist, t = off_line(T[:, :3, 3], T0[:3, 3], target[:3, 3])
     assert dist.max() <= TOL_P and t[-1] == pytest.approx(1.0, abs=1e-6)
     assert np.all(res.path >= -2.8) and np.all(res.path <= 2.8)
     # A ball in the way of the tool stops the line before it.
@@ -475,7 +442,7 @@ def test_built_in_arms_follow_a_held_line(robot):
     res = plan_line(checker, q, target, orientation="hold")
     assert res.status is CartesianStatus.OK, res.message
     T = fk(model, res.path)
-    dist, t = on_segment(T[:, :3, 3], T0[:3, 3], target[:3, 3])
+    dist, t = off_line(T[:, :3, 3], T0[:3, 3], target[:3, 3])
     assert dist.max() <= TOL_P and t[-1] == pytest.approx(1.0, abs=1e-5)
     assert angle_between(T[:, :3, :3], T0[:3, :3]).max() <= TOL_R
     assert np.all(res.path >= lo) and np.all(res.path <= hi)

@@ -10,9 +10,9 @@ import math
 
 import numpy as np
 import pytest
+from ur5_like import off_line, ur5_fk, ur5_model
 
 from kinematics.errors import FieldError
-from kinematics.model import RobotModel
 from planning.collision import CollisionScene, RobotCollisionModel
 from planning.motion import MotionChecker
 from planning.motion.task import (
@@ -27,9 +27,6 @@ from planning.motion.task import (
 pytestmark = pytest.mark.usefixtures("motion_kernels")
 
 PI = math.pi
-#: UR5 standard D-H (a, alpha, d), mm.
-UR5_DH = [(0.0, PI / 2, 89.159), (-425.0, 0.0, 0.0), (-392.25, 0.0, 0.0),
-          (0.0, PI / 2, 109.15), (0.0, -PI / 2, 94.65), (0.0, 0.0, 82.3)]
 Q0 = np.array([0.0, -1.2, 1.5, -1.9, -1.57, 0.3])
 Q1 = np.array([0.6, -1.0, 1.3, -1.9, -1.57, 0.3])
 #: The line: 150 mm straight down from the tool's position at Q1.
@@ -37,33 +34,9 @@ DROP = np.array([0.0, 0.0, -150.0])
 TOL_P = 0.1
 
 
-def ur5_fk(q: np.ndarray) -> np.ndarray:
-    """Tool poses ``(n, 4, 4)`` of ``q (n, 6)``: RotZ(q) TransZ(d) TransX(a) RotX(alpha)."""
-    out = []
-    for row in np.atleast_2d(q):
-        T = np.eye(4)
-        for (a, alpha, d), th in zip(UR5_DH, row):
-            ct, st, ca, sa = math.cos(th), math.sin(th), math.cos(alpha), math.sin(alpha)
-            T = T @ np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st],
-                              [0.0, sa, ca, d], [0.0, 0.0, 0.0, 1.0]])
-        out.append(T)
-    return np.array(out)
-
-
-def off_line(P: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance of points ``P`` from the line through ``p0``, ``p1`` and their parameter."""
-    d = p1 - p0
-    t = (P - p0) @ d / (d @ d)
-    return np.linalg.norm(P - p0 - t[:, None] * d, axis=1), t
-
-
 @pytest.fixture(scope="module")
 def ur5():
-    model = RobotModel.from_dict({
-        "id": "ur5_like", "name": "UR5-like", "convention": "sdh",
-        "joints": [{"name": f"j{i + 1}", "type": "revolute", "a": a, "alpha": al, "d": d,
-                    "lower": -2 * PI, "upper": 2 * PI}
-                   for i, (a, al, d) in enumerate(UR5_DH)]})
+    model = ur5_model()
     cm = RobotCollisionModel.from_model(model, link_radius=40.0)
     return model, cm
 

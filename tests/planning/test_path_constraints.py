@@ -16,9 +16,9 @@ import math
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from ur5_like import box, ur5_fk, ur5_model
 
 from kinematics.errors import FieldError
-from kinematics.model import RobotModel
 from planning.collision import CollisionScene, RobotCollisionModel, collides
 from planning.motion import MotionChecker
 from planning.motion import constraints as cmod
@@ -36,30 +36,11 @@ from planning.motion.constraints import (
 pytestmark = pytest.mark.usefixtures("motion_kernels")
 
 PI = math.pi
-#: UR5 standard D-H (a, alpha, d), mm.
-UR5_DH = [(0.0, PI / 2, 89.159), (-425.0, 0.0, 0.0), (-392.25, 0.0, 0.0),
-          (0.0, PI / 2, 109.15), (0.0, -PI / 2, 94.65), (0.0, 0.0, 82.3)]
 #: The tool points straight down here (q2 + q3 + q4 = -pi/2, q5 = -pi/2) ...
 Q_START = np.array([0.0, -1.2, 1.5, -PI / 2 - 0.3, -PI / 2, 0.0])
 #: ... and here, the base turned by 2 rad.
 Q_GOAL = Q_START + [2.0, 0, 0, 0, 0, 0]
 DOWN = np.array([0.0, 0.0, -1.0])
-
-
-def ur5_fk(q: np.ndarray) -> np.ndarray:
-    """Tool poses ``(n, 4, 4)`` of ``q (n, 6)``: RotZ(q) TransZ(d) TransX(a) RotX(alpha)."""
-    q = np.atleast_2d(q)
-    T = np.broadcast_to(np.eye(4), (len(q), 4, 4))
-    for (a, alpha, d), th in zip(UR5_DH, q.T):
-        ct, st = np.cos(th), np.sin(th)
-        ca, sa = math.cos(alpha), math.sin(alpha)
-        A = np.zeros((len(q), 4, 4))
-        A[:, 0] = np.stack([ct, -st * ca, st * sa, a * ct], axis=1)
-        A[:, 1] = np.stack([st, ct * ca, -ct * sa, a * st], axis=1)
-        A[:, 2, 1:] = [sa, ca, d]
-        A[:, 3, 3] = 1.0
-        T = T @ A
-    return T
 
 
 def dense(path: np.ndarray, step: float = 0.0025) -> np.ndarray:
@@ -77,19 +58,9 @@ def tilt(Q: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(z @ DOWN, -1.0, 1.0))
 
 
-def box(oid: str, size, at) -> dict:
-    T = np.eye(4)
-    T[:3, 3] = at
-    return {"type": "box", "id": oid, "size": list(size), "pose": T.tolist()}
-
-
 @pytest.fixture(scope="module")
 def ur5():
-    model = RobotModel.from_dict({
-        "id": "ur5_like", "name": "UR5-like", "convention": "sdh",
-        "joints": [{"name": f"j{i + 1}", "type": "revolute", "a": a, "alpha": al, "d": d,
-                    "lower": -2 * PI, "upper": 2 * PI}
-                   for i, (a, al, d) in enumerate(UR5_DH)]})
+    model = ur5_model()
     cm = RobotCollisionModel.from_model(model, link_radius=40.0)
     # The pillar stands on the arc the tool sweeps when only the base turns (at 1 rad).
     p = ur5_fk(Q_START)[0, :3, 3]
