@@ -33,6 +33,7 @@ if TYPE_CHECKING:
     from ..geometry.shapes.mesh import MESH_FILE_TYPES as MESH_FILE_TYPES
     from ..geometry.shapes.mesh import load_mesh_file as load_mesh_file
     from ..geometry.shapes.points import MAX_POINTS as MAX_POINTS
+    from .attached import Attachment as Attachment
     from .checker import CollisionReport as CollisionReport
     from .checker import check as check
     from .checker import collides as collides
@@ -46,6 +47,7 @@ if TYPE_CHECKING:
 
 #: Public name -> the module it loads from on first use.
 _LAZY = {
+    "Attachment": "attached",
     "CollisionReport": "checker",
     "check": "checker",
     "collides": "checker",

@@ -109,25 +109,35 @@ def link_shape(g: Any, meshes: Any, cache: dict) -> _Shape:
 
 
 class ExactRobot:
-    """The exact shapes of a ``RobotCollisionModel``'s links (FCL geometry built once)."""
+    """The exact shapes of a ``RobotCollisionModel``'s links and attached objects (FCL
+    geometry built once). ``shapes``: per body with a rigid state frame (an imported
+    robot's links, then the attachments; for a capsule model, the attachments only, after
+    ``first_rigid`` capsules), its shapes in that frame."""
 
     def __init__(self, model: Any) -> None:
         self.model = model
         self.shapes: list[list[_Shape]] = []
+        self.first_rigid = 0
         if model.kind == "imported":
             cache: dict = {}
             for k in model.link_index:
                 link = model.source.links[int(k)]
                 self.shapes.append([link_shape(g, model.source.meshes, cache)
                                     for g in link.collision])
+        else:
+            self.first_rigid = len(model.names) - len(model.attached)
+        for a in model.attached:
+            self.shapes.append(a.exact_shapes())
 
     def link_shapes(self, k: int, M: np.ndarray) -> list[tuple[_Shape, np.ndarray]]:
-        """Link ``k``'s shapes and their world poses, from its state ``M (3, w)``."""
-        if self.model.kind == "imported":
+        """Link (or attachment) ``k``'s shapes and their world poses, from its state
+        ``M (3, w)``."""
+        if k >= self.first_rigid:
             T = np.eye(4)
             T[:3, :] = M
-            return [(s, T @ s.T) for s in self.shapes[k]]
-        A, E = M[:, 0], M[:, 1]
+            return [(s, T @ s.T) for s in self.shapes[k - self.first_rigid]]
+        # A capsule: [start | run] without attachments, [run | 0 | 0 | start] with them.
+        A, E = (M[:, 3], M[:, 0]) if M.shape[1] == 4 else (M[:, 0], M[:, 1])
         r = float(self.model.capsule_radius[k])
         L = float(np.linalg.norm(E))
         fcl = _fcl()

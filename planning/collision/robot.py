@@ -21,6 +21,11 @@ A model turns configurations into a *state* ``M (B, L, 3, w)`` from which every 
 world centre is ``M @ local``: for imported robots ``M = [R | p]`` of each link's pose and
 ``local = [x, y, z, 1]``; for capsules ``M = [A | B - A]`` of each link's end points and
 ``local = [1, t]``. Lengths in mm.
+
+``with_attached`` adds carried objects (``planning.collision.attached``): one more body
+each after the links, whose state is its link's frame composed with its pose there; a
+capsule model carrying any then writes its capsules' states ``[B - A | 0 | 0 | A]`` with
+``local = [t, 0, 0, 1]`` (``width`` 4), one layout for links and objects.
 """
 
 from __future__ import annotations
@@ -120,6 +125,10 @@ class RobotCollisionModel:
     options: dict
     tables: tuple = ()              # PairTable per self pair checked by table
     sphere_pairs: np.ndarray | None = None  # indices into pairs checked by spheres
+    attached: tuple = ()            # Attachment per carried object (names' last entries)
+    attached_frame: np.ndarray | None = None  # (A,) link frame each attachment rides on
+    attached_pose: np.ndarray | None = None   # (A, 4, 4) T_link_object of each
+    base: Any = None                # the model without attachments (None: this one)
 
     def __post_init__(self):
         if self.sphere_pairs is None:
@@ -216,6 +225,44 @@ class RobotCollisionModel:
                    capsule_link=np.array(keep), capsule_length=lengths[keep],
                    options={"link_radius": radii.tolist()})
 
+    # ---- attachments -------------------------------------------------------------------------
+    def with_attached(self, attachments: Iterable[Any],
+                      resolve_mesh: Any = None) -> RobotCollisionModel:
+        """A new model carrying ``attachments`` (``planning.collision.attached``:
+        ``Attachment``s or their dicts) beside the ones this model carries; this model is
+        unchanged. Each is one more body, named by its object's id, in the sphere stage,
+        the exact stage, the self pairs and against the scene. ``resolve_mesh``: a stored
+        mesh's name -> (vertices, faces), for mesh objects given by name."""
+        from .attached import attach
+
+        return attach(self, attachments, resolve_mesh)
+
+    def without_attached(self) -> RobotCollisionModel:
+        """The model without any attachment (the one ``with_attached`` started from)."""
+        return self.base if self.base is not None else self
+
+    @property
+    def n_links(self) -> int:
+        """How many of ``names`` are the robot's own links (the attachments follow)."""
+        return len(self.names) - len(self.attached)
+
+    @property
+    def width(self) -> int:
+        """``w`` of the states ``M (B, L, 3, w)``: 4 (link frames) or 2 (capsules without
+        attachments)."""
+        return int(self.tree.root.shape[-1])
+
+    def state_frames(self, q2: np.ndarray) -> np.ndarray:
+        """The states as ``(B, L, 4, 4)`` (last row ``[0, 0, 0, 1]``; ``width`` 4 only):
+        rigid link poses, a capsule's ``[run | 0 | 0 | start]``."""
+        M = self.state(q2)
+        if M.shape[-1] != 4:
+            raise ValueError("state frames need states of width 4")
+        out = np.zeros(M.shape[:2] + (4, 4))
+        out[..., :3, :] = M
+        out[..., 3, 3] = 1.0
+        return out
+
     # ---- configurations -----------------------------------------------------------------------
     def batch(self, q) -> tuple[np.ndarray, bool]:
         """``q`` as ``(B, dof)`` float rows and whether one ``(dof,)`` was given;
@@ -233,22 +280,44 @@ class RobotCollisionModel:
     def link_poses(self, q2: np.ndarray) -> np.ndarray:
         """World poses ``(B, L, 4, 4)`` of the links in ``names`` for ``q2 (B, dof)``; for
         capsules, a frame at the capsule's start whose z axis runs along it."""
+        F = self._frames(q2)
         if self.kind == "imported":
-            return self.source.link_poses(q2)[:, self.link_index]
-        A, E = self._ends(q2)
-        return frames_along(A, E)
+            out = F[:, self.link_index]
+        else:
+            out = frames_along(*self._ends(F))
+        if self.attached:
+            out = np.concatenate([out, np.matmul(F[:, self.attached_frame],
+                                                 self.attached_pose)], axis=1)
+        return out
 
     def state(self, q2: np.ndarray) -> np.ndarray:
-        """``M (B, L, 3, w)`` of ``q2 (B, dof)``: world sphere centres are ``M @ local``."""
+        """``M (B, L, 3, w)`` of ``q2 (B, dof)``: world sphere centres are ``M @ local``
+        (an attachment's: its link's frame composed with its pose in that frame)."""
+        F = self._frames(q2)
         if self.kind == "imported":
-            return self.source.link_poses(q2)[:, self.link_index, :3, :]
-        A, E = self._ends(q2)
-        return np.stack([A, E], axis=-1)
+            M = F[:, self.link_index, :3, :]
+        elif not self.attached:
+            return np.stack(self._ends(F), axis=-1)
+        else:
+            A, E = self._ends(F)
+            M = np.zeros(A.shape[:2] + (3, 4))
+            M[..., 0], M[..., 3] = E, A
+        if self.attached:
+            M = np.concatenate([M, np.matmul(F[:, self.attached_frame],
+                                             self.attached_pose)[..., :3, :]], axis=1)
+        return M
 
-    def _ends(self, q2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _frames(self, q2: np.ndarray) -> np.ndarray:
+        """The robot's frames ``(B, F, 4, 4)``: an imported robot's ``link_poses``, a D-H
+        / PoE robot's ``fk_frames``."""
+        if self.kind == "imported":
+            return self.source.link_poses(q2)
         from kinematics.fk import fk_frames
 
-        P = fk_frames(self.source, q2)[..., :3, 3]
+        return fk_frames(self.source, q2)
+
+    def _ends(self, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        P = F[..., :3, 3]
         k = self.capsule_link
         return P[:, k], P[:, k + 1] - P[:, k]
 
@@ -270,11 +339,13 @@ class RobotCollisionModel:
     # ---- description --------------------------------------------------------------------------
     def describe(self) -> dict[str, Any]:
         """JSON-ready summary: the kind, the links (their shapes, sphere count and leaf
-        spheres in the link frame — for capsules, ``t`` along the capsule instead of x, y, z)
-        and the self-collision pairs."""
+        spheres in the link frame — for capsules, ``t`` along the capsule instead of x, y, z),
+        the self-collision pairs and the attached objects (id, type, link, pose in the
+        link's frame, touch links, sphere count, leaf spheres in the object's frame)."""
         t = self.tree
+        tcol = 0 if self.width == 4 else 1
         links = []
-        for k, name in enumerate(self.names):
+        for k, name in enumerate(self.names[:self.n_links]):
             sel = t.flat_link == k
             if self.kind == "imported":
                 link = self.source.links[self.link_index[k]]
@@ -285,7 +356,7 @@ class RobotCollisionModel:
                 shapes = [{"type": "capsule", "radius": float(self.capsule_radius[k]),
                            "max_length": float(self.capsule_length[k]),
                            "from_frame": c, "to_frame": c + 1}]
-                spheres = np.column_stack([t.flat[sel, 1], t.flat_r[sel]]).round(6).tolist()
+                spheres = np.column_stack([t.flat[sel, tcol], t.flat_r[sel]]).round(6).tolist()
             links.append({"name": name, "shapes": shapes, "spheres": int(sel.sum()),
                           "sphere_centres": spheres,
                           "bounding_radius": round(float(t.root_r[k]), 3)})
@@ -295,12 +366,31 @@ class RobotCollisionModel:
                                  "joints": [int(j) for j in x.joints],
                                  "nodes": int(len(x.values)),
                                  "slack": round(x.slack, 3)} for x in self.tables],
+                "attached": self._describe_attached(),
                 "spheres": int(len(t.flat_r)), "options": self.options}
+
+    def _describe_attached(self) -> list[dict[str, Any]]:
+        t = self.tree
+        out = []
+        for i, a in enumerate(self.attached):
+            sel = t.flat_link == self.n_links + i
+            out.append({**a.summary(), "spheres": int(sel.sum()),
+                        "sphere_centres": np.column_stack([t.flat[sel, :3], t.flat_r[sel]]
+                                                          ).round(3).tolist(),
+                        "bounding_radius": round(float(t.root_r[self.n_links + i]), 3)})
+        return out
 
     # ---- persistence ----------------------------------------------------------------------------
     def to_bytes(self) -> bytes:
         """The model as bytes (an ``.npz``: its arrays, and its small fields as JSON; no
-        pickle), to store next to the robot and load with ``from_bytes``."""
+        pickle), to store next to the robot and load with ``from_bytes``. A model with
+        attachments is stored as the model without them and the attachments' dicts
+        (``Attachment.to_dict``: a stored mesh by name), attached again on loading."""
+        if self.attached:
+            return self.without_attached()._to_bytes([a.to_dict() for a in self.attached])
+        return self._to_bytes([])
+
+    def _to_bytes(self, attached: list) -> bytes:
         import io
         import json
 
@@ -317,16 +407,21 @@ class RobotCollisionModel:
         meta = {"format": MODEL_FORMAT, "kind": self.kind, "names": list(self.names),
                 "dof": int(self.dof), "options": self.options, "tables": tables,
                 "fingerprint": _fingerprint(self.kind, self.source)}
+        if attached:
+            meta["attached"] = attached
         arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
         buffer = io.BytesIO()
         np.savez_compressed(buffer, **arrays)
         return buffer.getvalue()
 
     @classmethod
-    def from_bytes(cls, data: bytes, robot: Any) -> RobotCollisionModel:
+    def from_bytes(cls, data: bytes, robot: Any, resolve_mesh: Any = None
+                   ) -> RobotCollisionModel:
         """A model written by ``to_bytes``, for ``robot`` (the ``ImportedRobot`` or
         ``RobotModel`` it was built from). ``ValueError`` when the bytes are not such a
-        model or were built from another robot or geometry (then build it anew)."""
+        model or were built from another robot or geometry (then build it anew), or when
+        its attachments cannot be attached again (a stored mesh ``resolve_mesh`` does not
+        know)."""
         import io
         import json
 
@@ -358,8 +453,15 @@ class RobotCollisionModel:
         if not same:
             raise ValueError("the stored collision model was built from another robot or "
                              "other geometry")
-        return cls(kind=meta["kind"], names=tuple(meta["names"]), dof=int(meta["dof"]),
-                   tree=tree, source=robot, options=meta["options"], tables=tables, **fields)
+        model = cls(kind=meta["kind"], names=tuple(meta["names"]), dof=int(meta["dof"]),
+                    tree=tree, source=robot, options=meta["options"], tables=tables, **fields)
+        if meta.get("attached"):
+            try:
+                model = model.with_attached(meta["attached"], resolve_mesh)
+            except FieldError as exc:
+                raise ValueError(f"the stored attachments cannot be attached again: "
+                                 f"{exc.message} (at {list(exc.loc)})") from exc
+        return model
 
     # The exact geometry holds FCL objects (built on first use), which do not pickle.
     def __getstate__(self):

@@ -21,9 +21,10 @@ every planner conservative (nothing unchecked is ever kept). The planner sets it
 it; the verification helpers (``path_free`` outside a plan, ``clearance``) run without one.
 
 Without numba (``KINOPLAN_JIT=0``), for a robot whose links the chain layout cannot carry
-(a link moved by a mimic joint), or in a scene with a shape that has no compiled kernel (a
-registered shape without a code, ``planning.geometry.registry``), the checks run on
-``planning.collision.collides`` instead: the same answers, slower.
+(a link moved by a mimic joint; a prismatic joint's capsule on a D-H / PoE robot carrying
+attached objects, ``planning.collision.attached``), or in a scene with a shape that has no
+compiled kernel (a registered shape without a code, ``planning.geometry.registry``), the
+checks run on ``planning.collision.collides`` instead: the same answers, slower.
 """
 
 from __future__ import annotations
@@ -226,7 +227,7 @@ class MotionChecker:
 
         stage = exact_stage(self.cm, self.scene)
         if self._fcl is None:
-            self._fcl = _FastExact(stage, self.cm.kind == "imported")
+            self._fcl = _FastExact(stage)
         fast = self._fcl
         posed: dict[int, list] = {}
         for a, c, is_self in hits[:n]:
@@ -371,7 +372,7 @@ class MotionChecker:
 
         stage = exact_stage(self.cm, self.scene)
         if self._fcl is None:
-            self._fcl = _FastExact(stage, self.cm.kind == "imported")
+            self._fcl = _FastExact(stage)
         fast = self._fcl
         if fast.ok and (is_self or stage.is_fcl(c)):
             return fast.distance(M, a, c, is_self)
@@ -379,33 +380,61 @@ class MotionChecker:
 
 
 class _FastExact:
-    """The exact stage with the FCL objects of every link built once and posed in place
-    (imported robots; ``ok`` False otherwise)."""
+    """The exact stage with the FCL objects of every rigid body (an imported robot's links,
+    attached objects) built once and posed in place, and a capsule link's capsule built
+    from its state in scalar arithmetic (numpy's small-array calls cost more than FCL)."""
 
-    def __init__(self, stage: Any, imported: bool) -> None:
+    def __init__(self, stage: Any) -> None:
         import fcl
 
         self.fcl = fcl
         self.stage = stage
-        self.ok = imported
+        self.ok = True
+        robot = stage.robot
+        self.first = robot.first_rigid
+        self.radius = [float(r) for r in robot.model.capsule_radius[:self.first]]
         self.links: list[list[tuple[Any, np.ndarray]]] = []
-        if imported:
-            for shapes in stage.robot.shapes:
-                self.links.append([(fcl.CollisionObject(sh.geom), np.asarray(sh.T, float))
-                                   for sh in shapes])
+        for shapes in robot.shapes:
+            self.links.append([(fcl.CollisionObject(sh.geom), np.asarray(sh.T, float))
+                               for sh in shapes])
 
     def _pose(self, M: np.ndarray, k: int, posed: dict) -> list:
         objs = posed.get(k)
         if objs is None:
-            T = np.eye(4)
-            T[:3] = M[k]
-            objs = []
-            for obj, G in self.links[k]:
-                W = T @ G
-                obj.setTransform(self.fcl.Transform(W[:3, :3], W[:3, 3]))
-                objs.append(obj)
+            if k < self.first:
+                objs = [self._capsule(M[k], self.radius[k])]
+            else:
+                T = np.eye(4)
+                T[:3] = M[k]
+                objs = []
+                for obj, G in self.links[k - self.first]:
+                    W = T @ G
+                    obj.setTransform(self.fcl.Transform(W[:3, :3], W[:3, 3]))
+                    objs.append(obj)
             posed[k] = objs
         return objs
+
+    def _capsule(self, Mk: np.ndarray, r: float) -> Any:
+        """The FCL capsule of a capsule link's state ``[start | run]`` or
+        ``[run | 0 | 0 | start]``: radius ``r`` along the run, centred on its middle."""
+        fcl = self.fcl
+        (ax, ay, az), (ex, ey, ez) = ((Mk[:, 3], Mk[:, 0]) if Mk.shape[1] == 4
+                                      else (Mk[:, 0], Mk[:, 1]))
+        L = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if L == 0:
+            return fcl.CollisionObject(fcl.Sphere(r), fcl.Transform(np.eye(3),
+                                                                     np.array([ax, ay, az])))
+        zx, zy, zz = ex / L, ey / L, ez / L
+        if abs(zx) < 0.9:     # x = (1, 0, 0) x z
+            xx, xy, xz = 0.0, -zz, zy
+        else:                 # x = (0, 1, 0) x z
+            xx, xy, xz = zz, 0.0, -zx
+        n = math.sqrt(xx * xx + xy * xy + xz * xz)
+        xx, xy, xz = xx / n, xy / n, xz / n
+        yx, yy, yz = zy * xz - zz * xy, zz * xx - zx * xz, zx * xy - zy * xx
+        R = np.array([[xx, yx, zx], [xy, yy, zy], [xz, yz, zz]])
+        p = np.array([ax + 0.5 * ex, ay + 0.5 * ey, az + 0.5 * ez])
+        return fcl.CollisionObject(fcl.Capsule(r, L), fcl.Transform(R, p))
 
     def collides(self, M: np.ndarray, a: int, c: int, is_self: bool, posed: dict,
                  margin: float) -> bool:
@@ -483,15 +512,18 @@ def _calibrate(chain: Any, targets, dof: int, lower: np.ndarray, upper: np.ndarr
 
 def _robot_arrays(cm: Any, self_collision: bool) -> tuple | None:
     """The robot's arrays in the kernels' argument order, or None when its links cannot be
-    carried by the chain layout."""
+    carried by the chain layout. A state of width 4 is a frame ``P_body @ X`` (``X``
+    constant, not necessarily rigid): a link's or an attachment's pose, or a capsule's
+    ``[run | 0 | 0 | start]`` when both its ends ride on one body (a revolute joint's link;
+    a prismatic joint's link with attachments on the robot: the Python checks)."""
     from kinematics.fast import chain_of
     from kinematics.fk import fk_frames
 
     rm = cm.source.model if cm.kind == "imported" else cm.source
     chain = chain_of(rm)
     lower, upper = np.asarray(rm.lower, float), np.asarray(rm.upper, float)
-    if cm.kind == "imported":
-        cal = _calibrate(chain, lambda Q: cm.link_poses(Q), cm.dof, lower, upper)
+    if cm.width == 4:   # link frames (imported robots; any robot with attachments)
+        cal = _calibrate(chain, cm.state_frames, cm.dof, lower, upper)
         ends = np.zeros(len(cm.names), dtype=np.int64)
         w = 4
     else:
