@@ -29,6 +29,7 @@ from .api.routes import (
     jobs,
     kinematics,
     motion,
+    replay,
     rigs,
     robots,
     scenes,
@@ -193,6 +194,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.include_router(trajectories.router)
     api.include_router(jobs.router)
     api.include_router(exports.router)
+    api.include_router(replay.router)
     api.include_router(scenes.router)
     api.include_router(scenes.write_router, dependencies=guarded)
     api.include_router(viewer.router, dependencies=guarded)

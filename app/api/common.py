@@ -14,9 +14,9 @@ from kinematics.model import RobotModel
 
 from .. import collision_models
 from .deps import get_scenes
-from .errors import invalid, not_found
+from .errors import http_error, invalid, not_found
 
-__all__ = ["joint_rows", "resolve_scene", "collision_entry"]
+__all__ = ["joint_rows", "resolve_scene", "collision_entry", "succeeded_job"]
 
 
 def joint_rows(model: RobotModel, q: list, field: str = "q") -> tuple[np.ndarray, bool]:
@@ -55,3 +55,23 @@ def resolve_scene(request: Request, scene: str | dict | None, field: str = "scen
 async def collision_entry(request: Request, registry: Any, robot_id: str) -> tuple[Any, str]:
     """The robot's collision model and its token (``collision_models.collision_entry``)."""
     return await collision_models.collision_entry(request.app.state, registry, robot_id)
+
+
+def succeeded_job(request: Request, job_id: str, what: str) -> tuple[Any, str]:
+    """A succeeded job's record and its result's JSON text, for the routes that derive
+    ``what`` (e.g. "a trajectory") from a result: 404 for an unknown job, 409 naming its
+    status (and error) for one that has not succeeded."""
+    from ..jobs.manager import JobStateError
+
+    jobs = request.app.state.jobs
+    try:
+        job = jobs.get(job_id)
+        if job.status != "succeeded":
+            why = f" ({job.error})" if job.error else ""
+            raise http_error(409, ["path", "job_id"], f"job {job_id} is {job.status}{why}: "
+                             f"{what} exists once it has succeeded", "conflict")
+        return job, jobs.result(job_id)
+    except KeyError:
+        raise not_found("job", job_id) from None
+    except JobStateError as exc:  # ended otherwise between the two looks
+        raise http_error(409, ["path", "job_id"], str(exc), "conflict") from None

@@ -16,7 +16,6 @@ from fastapi import APIRouter, Path, Query, Request, Response
 
 from planning.motion.request import MAX_PROBLEMS
 
-from ...jobs.manager import JobManager, JobStateError
 from ...responses import FastJSONRoute, dumps
 from ...trajectory_export import (
     ExportError,
@@ -26,7 +25,8 @@ from ...trajectory_export import (
     to_joint_trajectory,
     to_json,
 )
-from ..errors import http_error, not_found
+from ..common import succeeded_job
+from ..errors import http_error
 
 __all__ = ["router"]
 
@@ -64,18 +64,7 @@ def get_job_trajectory(
     trajectory; each problem of a batch), ``path`` (planned for a robot), ``multiarm`` (one
     per arm) and ``tracking``; velocities and accelerations of the last two are estimated
     from their stored positions by finite differences (``derivatives`` in json)."""
-    jobs: JobManager = request.app.state.jobs
-    try:
-        job = jobs.get(job_id)
-        if job.status != "succeeded":
-            why = f" ({job.error})" if job.error else ""
-            raise http_error(409, ["path", "job_id"], f"job {job_id} is {job.status}{why}: "
-                             "a trajectory exists once it has succeeded", "conflict")
-        text = jobs.result(job_id)
-    except KeyError:
-        raise not_found("job", job_id) from None
-    except JobStateError as exc:  # ended otherwise between the two looks
-        raise http_error(409, ["path", "job_id"], str(exc), "conflict") from None
+    job, text = succeeded_job(request, job_id, "a trajectory")
     try:
         tracks = extract(job.kind, job.params, orjson.loads(text),
                          request.app.state.registry.get)
