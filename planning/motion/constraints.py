@@ -77,6 +77,7 @@ from kinematics.status import Status
 from planning.geometry.fields import vector as _vector3
 
 from .checker import DEFAULT_RESOLUTION, MIN_RESOLUTION, MotionChecker, segment_states
+from .planner import joint_vector
 
 __all__ = ["ConstrainedStatus", "ConstrainedResult", "Constraint", "AxisConstraint",
            "OrientationConstraint", "PositionLineConstraint", "PositionPlaneConstraint",
@@ -731,19 +732,6 @@ class ConstrainedResult:
 
 
 # ---- input --------------------------------------------------------------------------------
-def _config(value: Any, dof: int, loc: tuple) -> np.ndarray:
-    try:
-        v = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise FieldError(loc, f"{loc[-1]} must be a list of {dof} numbers") from None
-    if v.shape != (dof,):
-        raise FieldError(loc, f"{loc[-1]} must have {dof} joint values, got shape "
-                         f"{list(v.shape)}")
-    if not np.all(np.isfinite(v)):
-        raise FieldError(loc, f"{loc[-1]} must be finite")
-    return v
-
-
 def _number(value: Any, loc: tuple, lo: float, hi: float, open_low: bool = True) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float) \
             or not math.isfinite(value) or (value <= lo if open_low else value < lo) \
@@ -1020,8 +1008,8 @@ def plan_constrained(checker: MotionChecker, start, goal, constraints, *,
     t0 = time.perf_counter()
     model = checker.robot_model
     dof = checker.dof
-    q_start = _config(start, dof, ("start",))
-    q_goal = _config(goal, dof, ("goal",))
+    q_start = joint_vector(start, dof, ("start",))
+    q_goal = joint_vector(goal, dof, ("goal",))
     cons = parse_constraints(constraints, model)
     for i, c in enumerate(cons):
         if c.model is not model and (c.model.dof != dof):

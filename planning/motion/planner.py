@@ -149,17 +149,21 @@ class MotionResult:
         if joint_names is not None:
             out["joints"] = list(joint_names)
         if self.trajectory is not None:
-            T = self.trajectory
-            t = np.linspace(0.0, T.duration, max(2, int(samples)))
-            out["trajectory"] = {"t": t.tolist(), "q": T.evaluate(t).tolist(),
-                                 "qd": T.evaluate(t, 1).tolist(),
-                                 "qdd": T.evaluate(t, 2).tolist(),
-                                 "duration": float(T.duration)}
+            out["trajectory"] = trajectory_samples(self.trajectory, samples)
         return out
 
 
+def trajectory_samples(T: Any, samples: int) -> dict:
+    """A trajectory as the answers carry it: ``samples`` evenly spaced times (at least 2)
+    with positions, velocities and accelerations, and its duration."""
+    t = np.linspace(0.0, T.duration, max(2, int(samples)))
+    return {"t": t.tolist(), "q": T.evaluate(t).tolist(), "qd": T.evaluate(t, 1).tolist(),
+            "qdd": T.evaluate(t, 2).tolist(), "duration": float(T.duration)}
+
+
 # ---- input ------------------------------------------------------------------------------------
-def _vector(value, dof: int, loc: tuple) -> np.ndarray:
+def joint_vector(value, dof: int, loc: tuple) -> np.ndarray:
+    """``value`` as ``dof`` finite joint values, else a ``FieldError`` at ``loc``."""
     try:
         v = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
@@ -251,7 +255,7 @@ def plan_motion(checker: MotionChecker, start, goal=None, *, goal_pose=None, mod
     receives the fraction of the time limit used and may raise to stop."""
     t0 = time.perf_counter()
     dof = checker.dof
-    q_start = _vector(start, dof, ("start",))
+    q_start = joint_vector(start, dof, ("start",))
     if (goal is None) == (goal_pose is None):
         raise FieldError(("goal",), "goal: give a configuration (q) or a pose")
     if planner not in PLANNERS:
@@ -263,7 +267,7 @@ def plan_motion(checker: MotionChecker, start, goal=None, *, goal_pose=None, mod
         raise FieldError(("seed",), "seed must be an integer")
     q_goal = pose = None
     if goal is not None:
-        q_goal = _vector(goal, dof, ("goal", "q"))
+        q_goal = joint_vector(goal, dof, ("goal", "q"))
     else:
         pose = np.asarray(goal_pose, dtype=float)
         if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):

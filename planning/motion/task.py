@@ -72,7 +72,7 @@ from .cartesian import (
 )
 from .cartesian import _options as _cartesian_options
 from .checker import DEFAULT_RESOLUTION
-from .planner import FINISH_S, MotionStatus, _trajectory, plan_checked
+from .planner import FINISH_S, MotionStatus, _trajectory, plan_checked, trajectory_samples
 from .request import (
     MAX_TIME_LIMIT_S,
     MotionRequest,
@@ -202,12 +202,7 @@ class TaskResult:
         if joint_names is not None:
             out["joints"] = list(joint_names)
         if self.trajectory is not None:
-            T = self.trajectory
-            t = np.linspace(0.0, T.duration, max(2, int(samples)))
-            out["trajectory"] = {"t": t.tolist(), "q": T.evaluate(t).tolist(),
-                                 "qd": T.evaluate(t, 1).tolist(),
-                                 "qdd": T.evaluate(t, 2).tolist(),
-                                 "duration": float(T.duration)}
+            out["trajectory"] = trajectory_samples(self.trajectory, samples)
         return out
 
 
