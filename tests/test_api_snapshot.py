@@ -39,6 +39,7 @@ def recorded(snap, tmp_path_factory) -> tuple[Path, Path]:
     return a, b
 
 
+@pytest.mark.slow
 def test_the_same_build_records_the_same_answers(snap, recorded, capsys):
     a, b = recorded
     records = json.loads(a.read_text())["records"]

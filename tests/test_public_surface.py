@@ -278,6 +278,7 @@ def a_cycle(graph: dict[str, set[str]], component: set[str]) -> list[str]:
     return sorted(component)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("package", LIBRARIES)
 def test_libraries_never_import_app_or_web(package):
     offenders = sorted(

@@ -81,6 +81,7 @@ def test_the_checks_catch_what_they_look_for():
     assert speed_clock_uses("import time\nend = time.monotonic() + 5\n") == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", MODULES, ids=[str(p.relative_to(TESTS)) for p in MODULES])
 def test_property_tests_repeat_and_speed_goals_live_in_benchmarks(path):
     source = path.read_text()

@@ -62,6 +62,7 @@ def test_trajectory_planning_names_the_field(ro_client, change, loc, words):
     assert err["loc"] == loc and words in err["msg"] and err["type"] == "value_error", err
 
 
+@pytest.mark.slow
 def test_a_field_error_raised_in_a_worker_process_names_its_field(ro_client):
     """Time scaling always runs in a compute worker: its FieldError crosses back whole."""
     err = first_error(ro_client.post("/trajectories", json=plan_body(time_scaling=True)))

@@ -226,12 +226,14 @@ def test_missing_mesh_names_the_link_and_file(client):
     assert "forearm.stl" in msg
 
 
+@pytest.mark.slow
 def test_unknown_tip_link_lists_the_candidates(client):
     loc, msg = _error(_import(client, "x", _archive(), tip_link="no_such_link"))
     assert loc == ["body", "tip_link"]
     assert "no_such_link" in msg and "tool" in msg
 
 
+@pytest.mark.slow
 def test_two_urdfs_need_the_urdf_field(client):
     data = _archive(extra={"glt_description/urdf/copy.urdf": _urdf()})
     loc, msg = _error(_import(client, "x", data))
@@ -265,6 +267,7 @@ def test_a_floating_joint_on_the_chain_and_a_cycle(client):
     assert "link_1" in msg or any("link_1" in str(p) for p in loc)
 
 
+@pytest.mark.slow
 def test_bad_fields_and_conflicts(client):
     loc, _ = _error(_import(client, "x", _archive(), fixed_joints="{not json"))
     assert loc == ["body", "fixed_joints"]

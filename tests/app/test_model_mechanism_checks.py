@@ -55,6 +55,7 @@ def test_the_unmodified_copy_is_stored_and_times_optimally(client):
     assert body["hydraulics"]["pump"]["peak_flow"] == pytest.approx(40.0, rel=1e-3)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path, extra", [
     ("/trajectories", {}),
     ("/trajectories", {"time_scaling": "none", "durations": [2.0]}),

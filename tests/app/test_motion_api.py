@@ -70,6 +70,7 @@ def _error(r) -> tuple[list, str]:
 
 
 # ---- plans ----------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_a_planned_path_goes_around_the_ball_and_every_segment_is_free(ro_client):
     model = builtin_model(ROBOT)
     cm = RobotCollisionModel.from_model(model)

@@ -223,6 +223,7 @@ def _meshed_glt() -> bytes:
     return buf.getvalue()
 
 
+@pytest.mark.slow
 def test_an_imported_robot_is_drawn_with_its_meshes_at_its_link_poses(client):
     pytest.importorskip("trimesh")
     r = client.post("/robots/import", files={"file": ("glt.zip", _meshed_glt(),
@@ -371,6 +372,7 @@ def test_a_job_not_succeeded_is_409_saying_its_status(client):
     assert r.status_code == 409 and "time limit" in _detail(r)["msg"]
 
 
+@pytest.mark.slow
 def test_jobs_without_a_trajectory_are_422_as_for_the_trajectory_export(client):
     _store(client, "ws", "echo", {"value": 1}, {"value": 1})
     r = client.get("/jobs/ws/replay.html")

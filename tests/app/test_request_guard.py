@@ -262,6 +262,7 @@ def test_a_silent_connection_is_cut_off(live_server):
         assert _closed_after(s) < 3.0
 
 
+@pytest.mark.slow
 def test_a_body_that_stops_half_way_is_cut_off(live_server):
     with socket.create_connection(("127.0.0.1", live_server)) as s:
         s.sendall(b"POST /robots/pile_driver/fk HTTP/1.1\r\nHost: 127.0.0.1\r\n"
@@ -392,6 +393,7 @@ def test_errors_come_back_from_a_worker_without_breaking_it():
         pool.shutdown()
 
 
+@pytest.mark.slow
 def test_shutdown_stops_a_busy_worker_at_once():
     pool = ComputePool(workers=1, max_waiting=4)
 
@@ -409,6 +411,7 @@ def test_shutdown_stops_a_busy_worker_at_once():
     assert time.monotonic() - start < 5.0
 
 
+@pytest.mark.slow
 def test_a_batch_ik_on_a_robot_without_a_closed_form_is_422(ro_client):
     T = [[1, 0, 0, 500], [0, 1, 0, 0], [0, 0, 1, 300], [0, 0, 0, 1]]
     r = ro_client.post("/robots/tunnel_drill_arm/ik", json={"pose": [T] * 12,

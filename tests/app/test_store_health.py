@@ -302,6 +302,7 @@ def test_a_restored_backup_brings_its_robots(client, tmp_path):
 
 
 # ---- the job supervisor -------------------------------------------------------------------
+@pytest.mark.slow
 def test_job_loop_backs_off_logs_once_and_recovers(tmp_path, caplog, monkeypatch):
     monkeypatch.setattr(health_route, "HEALTH_TTL_S", 0.0)
     settings = Settings(no_viewer=True, data_dir=tmp_path, workers=1)

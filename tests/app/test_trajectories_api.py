@@ -33,6 +33,7 @@ def test_plan_and_sample(ro_client, method):
         assert c["jerk"] < 1e-9
 
 
+@pytest.mark.slow
 def test_limits_reported_and_fitted(ro_client):
     fast = body(durations=[0.5, 0.5], limits={"velocity": 0.5, "acceleration": 1.0})
     out = ro_client.post("/trajectories", json=fast).json()
@@ -48,6 +49,7 @@ def test_limits_reported_and_fitted(ro_client):
     assert binding == pytest.approx(1.0, rel=0.01)
 
 
+@pytest.mark.slow
 def test_robot_speed_limits_are_checked(ro_client):
     """hyper_redundant_9dof has a 0.1 rad/s joint speed limit."""
     wp = [[0.0] * 9, [0.5] * 9]
@@ -69,6 +71,7 @@ def test_joint_position_limits_are_checked(ro_client):
     assert v and v[0]["quantity"] == "position" and v[0]["name"] == "shoulder"
 
 
+@pytest.mark.slow
 def test_plot_is_a_png(ro_client):
     r = ro_client.post("/trajectories/plot", json=body(method="sextic", robot="glt_palletizer"))
     assert r.status_code == 200

@@ -135,6 +135,7 @@ def test_sequence_job_by_boom_time(client):
     assert plain["order"] == out["distance_order"]
 
 
+@pytest.mark.slow
 def test_multiarm_job_by_boom_time(client):
     out = run(client, "multiarm", {"holes": SIDES, "cost": "time", "seed": 0,
                                    "output_dt": 1.0})

@@ -139,6 +139,7 @@ def test_a_real_job_result_matches_the_published_result_schema(published, result
         jsonschema.validate({k: v for k, v in results[case].items() if k != first}, schema)
 
 
+@pytest.mark.slow
 def test_results_keep_their_shapes(results):
     """Fields present only in some results are left out, not null, elsewhere."""
     assert "projections" in results["workspace"]

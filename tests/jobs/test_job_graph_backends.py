@@ -41,6 +41,7 @@ def overlapping(parts: list[dict]) -> int:
     return most
 
 
+@pytest.mark.slow
 def test_the_parts_of_one_job_run_at_once_in_separate_processes(fan_client):
     job_id = submit(fan_client, parts=4, part_s=1.0)
     seen = []
@@ -59,6 +60,7 @@ def test_the_parts_of_one_job_run_at_once_in_separate_processes(fan_client):
     assert any(m.startswith("part ") for _, m in seen)
 
 
+@pytest.mark.slow
 def test_the_same_result_inline_and_on_the_backend(fan_client):
     params = graph_kinds.FanParams(parts=3, part_s=0.0)
     inline = run_inline(graph_kinds.graph(params), params, lambda f, m: None)

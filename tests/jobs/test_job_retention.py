@@ -83,6 +83,7 @@ def test_a_job_keeps_its_payload_while_it_can_run_and_drops_it_when_it_ends(tmp_
         store.job_payload("j")
 
 
+@pytest.mark.slow
 def test_jobs_run_by_the_service_drop_their_payloads(jobs_client):
     c = jobs_client
     store = c.app.state.store
@@ -257,6 +258,7 @@ def test_compaction_waits_for_enough_free_pages_and_gives_them_back(tmp_path):
 
 
 # ---- DELETE ------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_deleting_a_finished_job_frees_its_rows_and_then_it_is_gone(jobs_client):
     c = jobs_client
     store = c.app.state.store

@@ -44,6 +44,7 @@ def test_progress_rises_then_result(jobs_client):
     assert job_id in [j["id"] for j in jobs_client.get("/jobs").json()]
 
 
+@pytest.mark.slow
 def test_result_is_409_until_succeeded(jobs_client):
     job_id = submit(jobs_client, "sleep", seconds=1.0)
     r = jobs_client.get(f"/jobs/{job_id}/result")
@@ -69,6 +70,7 @@ def pile_driver_tool_points(q: np.ndarray) -> np.ndarray:
     return np.c_[out * np.cos(swing), out * np.sin(swing), up]
 
 
+@pytest.mark.slow
 def test_workspace_job_reports_the_seeded_monte_carlo(jobs_client):
     """The job's report, against the Monte Carlo redone here: 30,000 configurations drawn
     with ``default_rng(seed).uniform`` within Table 1's limits, tool points in closed form,
@@ -99,6 +101,7 @@ def test_workspace_job_reports_the_seeded_monte_carlo(jobs_client):
         assert np.sum(result["projections"][name]["counts"]) == samples, name
 
 
+@pytest.mark.slow
 def test_a_job_that_raises_fails_with_its_error(jobs_client):
     job_id = submit(jobs_client, "sleep", seconds=0.1, outcome="raise")
     job = wait_for(jobs_client, job_id)
@@ -106,6 +109,7 @@ def test_a_job_that_raises_fails_with_its_error(jobs_client):
     assert jobs_client.get(f"/jobs/{job_id}/result").status_code == 409
 
 
+@pytest.mark.slow
 def test_a_dying_worker_fails_only_its_job(jobs_client):
     dying = submit(jobs_client, "sleep", seconds=0.2, outcome="exit")
     fine = submit(jobs_client, "sleep", seconds=0.5)
@@ -116,6 +120,7 @@ def test_a_dying_worker_fails_only_its_job(jobs_client):
     assert wait_for(jobs_client, submit(jobs_client, "echo", value=1))["status"] == "succeeded"
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_job(jobs_client):
     job_id = submit(jobs_client, "sleep", seconds=20, steps=200)
     pid = None
@@ -129,6 +134,7 @@ def test_a_worker_killed_mid_job(jobs_client):
     assert wait_for(jobs_client, submit(jobs_client, "echo", value=2))["status"] == "succeeded"
 
 
+@pytest.mark.slow
 def test_cancel_queued_and_running(tmp_path):
     settings = Settings(no_viewer=True, data_dir=tmp_path, workers=1)
     with TestClient(create_app(settings)) as client:

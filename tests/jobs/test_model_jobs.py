@@ -28,6 +28,7 @@ def run_job(client, kind, **params):
     return client.get(f"/jobs/{job['id']}/result").json()
 
 
+@pytest.mark.slow
 def test_calibrate_job_recovers_a_length(jobs_client):
     """Measurements from a GLT whose upper arm is 3 mm longer: the fit finds the 3 mm."""
     glt = builtin_model("glt_palletizer")
@@ -128,6 +129,7 @@ def test_learned_ik_on_the_glt_palletizer_fails_its_validation_with_defaults(job
     assert res["success"] and res["method"] == "learned+numeric"
 
 
+@pytest.mark.slow
 def test_a_tiny_training_fails_its_validation_and_the_learned_ik_refuses(jobs_client):
     """100 samples for an arm that reaches 18 m: the map's guesses are off by decimetres on
     poses it has not seen (on its own samples it interpolates them), so the job says so and

@@ -151,6 +151,7 @@ def _submit(client, params: dict, **extra):
     return client.post("/jobs", json={"kind": "motion", "params": params, **extra})
 
 
+@pytest.mark.slow
 def test_a_batch_job_in_a_stored_scene_through_the_service(jobs_client):
     c = jobs_client
     stored = {"id": "motion_cell", "objects": [_ball(name="pillar")]}
@@ -240,6 +241,7 @@ def test_a_scene_too_big_for_a_job_is_413(jobs_client):
     assert r.json()["detail"][0]["loc"] == ["body", "params", "scene"]
 
 
+@pytest.mark.slow
 def test_a_small_stored_mesh_is_filled_in(jobs_client):
     c = jobs_client
     box = pytest.importorskip("trimesh").creation.box(extents=(200.0, 200.0, 200.0))

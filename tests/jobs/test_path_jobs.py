@@ -29,6 +29,7 @@ def submit(client, kind: str, params: dict):
     return client.post("/jobs", json={"kind": kind, "params": params})
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("change, loc, words", [
     (lambda p: p["scene"]["obstacles"][2].pop("upper") and
      p["scene"]["obstacles"][1].update(radius=-3),

@@ -31,6 +31,7 @@ def _gone(pid: int) -> bool:
         return True
 
 
+@pytest.mark.slow
 def test_a_step_runs_in_the_child_with_progress_and_its_value(runner):
     seen = []
     text = runner.run("job-a", "sleep", {"params": {"seconds": 0.2, "steps": 4}}, run_sleep, (),
@@ -43,6 +44,7 @@ def test_a_step_runs_in_the_child_with_progress_and_its_value(runner):
     assert value.slept == 0.2 and value.pid == runner.process.pid
 
 
+@pytest.mark.slow
 def test_the_child_needs_the_params_of_a_new_job(runner):
     with pytest.raises(StepFailed, match="lost the job's params"):
         runner.run("job-b", "echo", None, run_echo, (), True, lambda f, m: None, lambda: False)

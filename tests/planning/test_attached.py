@@ -152,6 +152,7 @@ def test_the_load_hits_the_table_where_the_arm_is_free(ur5):
     assert rep.distance_exact and rep.distance == pytest.approx(d, abs=1e-6)
 
 
+@pytest.mark.slow
 def test_the_original_model_is_unchanged_and_describe_names_the_load(ur5):
     _, cm = ur5
     before = (cm.names, cm.pairs.copy(), cm.tree.leaf.shape)
@@ -192,6 +193,7 @@ def test_the_balls_contain_the_load(ur5):
         assert np.all(d.min(axis=1) <= 1e-9)
 
 
+@pytest.mark.slow
 def test_compiled_and_python_paths_agree_with_the_reference(ur5, monkeypatch):
     """A few hundred random configurations: the compiled checker, the collision package
     (sphere stage and exact) and the reference give one answer; the spheres never call a
@@ -247,6 +249,7 @@ def test_touch_links_allow_contact_with_the_named_links(ur5):
 
 
 # ---- planning with the load ---------------------------------------------------------------------
+@pytest.mark.slow
 def test_a_plan_carries_the_load_round_the_block(ur5):
     _, cm = ur5
     boxes = [table("table", (1600, 1600, 100), (-500, 0, -100)),       # top at z = -50
@@ -270,6 +273,7 @@ def test_a_plan_carries_the_load_round_the_block(ur5):
 
 
 # ---- persistence --------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_bytes_keep_the_attachments(ur5):
     model, cm = ur5
     scene = CollisionScene.from_dicts([TABLE])
@@ -301,6 +305,7 @@ ARM = """<?xml version="1.0"?>
 </robot>"""
 
 
+@pytest.mark.slow
 def test_imported_robot_carries_a_cylinder():
     urdf_import = pytest.importorskip("kinematics.urdf_import")
     robot = urdf_import.import_robot(ARM.encode(), "arm2.urdf", robot_id="arm2")
@@ -430,6 +435,7 @@ OBJECTS = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", list(OBJECTS))
 def test_every_attachable_type(ur5, kind):
     """Each type (a mesh through the mesh lookup): its balls contain it, and the compiled

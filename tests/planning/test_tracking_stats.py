@@ -71,6 +71,7 @@ def test_untuned_pi_row_repeats_one_deterministic_run(table_and_progress):
     assert base.p_value is None
 
 
+@pytest.mark.slow
 def test_no_pi_row_is_the_open_loop_law(table_and_progress):
     """Table 3's "No PI": the desired velocity alone through eq. 13 (zero gains on the
     feed-forward law), one deterministic run repeated: no gains of ours in it."""
@@ -84,6 +85,7 @@ def test_no_pi_row_is_the_open_loop_law(table_and_progress):
     assert row.p_value is None and row.p_no_pi is None
 
 
+@pytest.mark.slow
 def test_rank_sum_finds_every_tuner_better_than_no_pi(table_and_progress):
     """Against the baseline that has no gains of ours (the untuned PI's gains are our pick,
     so beating it says little): every tuning, even 3 iterations long, beats No PI."""

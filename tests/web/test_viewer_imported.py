@@ -320,6 +320,7 @@ def test_a_stored_scene_draws_every_object_type(api):
         v.show_scene("nope")
 
 
+@pytest.mark.slow
 def test_viewer_show_route_shows_and_clears_scenes(api):
     _store_scene(api.state.scenes)
     with TestClient(api) as client:

@@ -323,6 +323,7 @@ def test_the_route_shows_one_problem_of_a_batch(api, batch):
     assert r.status_code == 422
 
 
+@pytest.mark.slow
 def test_an_imported_robot_moves_its_meshes_along_a_motion_answer(api, glt_meshed_zip):
     """The answer of a motion request (``plan_motion`` on the imported robot's model, capsule
     collision model, in the route's answer form) shown with ``{"motion": answer}``: the

@@ -292,6 +292,7 @@ def test_ik_drag_follows_reachable_targets_and_keeps_the_last_good_pose(api):
     _wait(lambda: np.allclose(v.gizmo.position, T[:3, 3] * MM_TO_M, atol=1e-9))
 
 
+@pytest.mark.slow
 def test_concurrent_updates_from_many_threads_leave_a_consistent_scene(api):
     v = api.state.viewer
     model = builtin_model("pile_driver")
