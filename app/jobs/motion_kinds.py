@@ -133,7 +133,11 @@ STEPS_DESCRIPTION = (
     "\"max_step\"?: mm, \"max_rotation\"?: rad, \"jump_threshold\"?: rad, \"time_limit\"?} "
     "(the tool along a straight line); {\"type\": \"arc\", \"via\" and \"target\", or "
     "\"centre\", \"axis\" and \"angle\", \"orientation\"?: \"slerp\"|\"hold\"|\"rotate\", ...} "
-    "(the tool along a circular arc). time_limit bounds the whole task")
+    "(the tool along a circular arc); {\"type\": \"attach\", \"object\": {a box, sphere, "
+    "cylinder, capsule or mesh with its id}, \"link\"?, \"pose\"?, \"touch_links\"?} (carried "
+    "from there on); {\"type\": \"detach\", \"object\": id, \"place\"?: true}; a move may "
+    "keep \"constraints\": [...] (axis, orientation, position_line, position_plane, "
+    "joint_range). time_limit bounds the whole task")
 
 
 def _scene_description(stored: str) -> str:
@@ -310,7 +314,7 @@ class StepOut(Result):
     """How one step of a task ended (``planning.motion.task.StepResult.to_dict``)."""
 
     index: int = Field(description="The step's place in steps")
-    type: str = Field(description="move, line or arc")
+    type: str = Field(description="move, line, arc, attach or detach")
     status: TaskStatus = Field(description="A move's (ok, start_in_collision, "
                                "goal_in_collision, goal_unreachable, out_of_limits, no_path, "
                                "timeout) or a segment's (ok, unreachable, out_of_limits, "

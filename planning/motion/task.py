@@ -72,6 +72,7 @@ from .cartesian import (
 )
 from .cartesian import _options as _cartesian_options
 from .checker import DEFAULT_RESOLUTION
+from .constraints import ConstrainedStatus, parse_constraints, plan_constrained
 from .planner import FINISH_S, MotionStatus, _trajectory, plan_checked, trajectory_samples
 from .request import (
     MAX_TIME_LIMIT_S,
@@ -100,10 +101,12 @@ __all__ = ["MAX_TASK_STEPS", "STEP_TYPES", "StepType", "StepResult", "TaskResult
 
 #: Most steps of one task (a request with more is refused, naming ``steps``).
 MAX_TASK_STEPS = 100
-#: Every status a task or a step may end with: a move's (``MotionStatus``) and a Cartesian
-#: segment's (``CartesianStatus``), in that order, each once.
+#: Every status a task or a step may end with: a move's (``MotionStatus``), a Cartesian
+#: segment's (``CartesianStatus``) and a constrained move's (``ConstrainedStatus``), in that
+#: order, each once.
 TASK_STATUSES = tuple(dict.fromkeys(
-    [s.value for s in MotionStatus] + [s.value for s in CartesianStatus]))
+    [s.value for s in MotionStatus] + [s.value for s in CartesianStatus]
+    + [s.value for s in ConstrainedStatus]))
 #: The fields of a task body: ``start`` and ``steps`` with the shared settings of a motion
 #: request (``time_limit`` bounds the whole task).
 TASK_FIELDS = ("scene", "start", "steps", "planner", "time_limit", "seed", "resolution",
@@ -254,6 +257,8 @@ class MoveStep:
     index: int
     request: MotionRequest
     own_time_limit: float | None = None
+    #: Path constraints (``constraints.parse_constraints``): the move keeps them throughout.
+    constraints: tuple = ()
     type: str = "move"
 
     def plan(self, ctx: _Context, q: np.ndarray) -> _Outcome:
@@ -262,6 +267,15 @@ class MoveStep:
             return _out_of_time(q, self.request.planner)
         limit = left if self.own_time_limit is None else min(left, self.own_time_limit)
         r = self.request
+        if self.constraints:
+            kept = plan_constrained(ctx.checker, q, r.goal, list(self.constraints),
+                                    time_limit=limit, seed=r.seed, resolution=r.resolution,
+                                    simplify=r.simplify, progress=ctx.report)
+            states = kept.path if len(kept.path) else q[None]
+            return _Outcome(kept.status.value, kept.message, states, "constrained",
+                            planning_time_s=kept.planning_time_s, pairs=tuple(kept.pairs),
+                            deviation=kept.worst_violation if kept.success else None,
+                            goal=r.goal if kept.success else None)
         res = plan_checked(ctx.checker, q, r.goal, r.goal_pose, model=ctx.model,
                            planner=r.planner, time_limit=limit, seed=r.seed,
                            resolution=r.resolution, simplify=r.simplify, trajectory=False,
@@ -297,6 +311,92 @@ class SegmentStep:
                         pairs=tuple(res.pairs), deviation=res.deviation)
 
 
+def _rechecked(checker: MotionChecker, collision_model: Any, scene: Any) -> MotionChecker:
+    """``checker`` with another collision model or scene, its settings kept."""
+    from .checker import MotionChecker
+
+    fresh = MotionChecker(collision_model, scene, lower=checker.lower, upper=checker.upper,
+                          self_collision=checker.self_collision, margin=checker.margin)
+    fresh.deadline = checker.deadline
+    return fresh
+
+
+def _held(ctx: _Context, q: np.ndarray, planner: str, message: str, t0: float) -> _Outcome:
+    """The answer of a step that changes what the robot carries: ``ok`` if the robot, with
+    what it carries now, is free where it stands, else ``collision`` with the pairs."""
+    if bool(ctx.checker.free(q)):
+        return _Outcome("ok", message, q[None], planner,
+                        planning_time_s=time.perf_counter() - t0)
+    pairs = tuple(ctx.checker.pairs(q))
+    return _Outcome("collision", f"{message}, but then it collides: "
+                    + ", ".join(f"{a}-{b}" for a, b in pairs), q[None], planner,
+                    planning_time_s=time.perf_counter() - t0, pairs=pairs)
+
+
+@dataclass(frozen=True)
+class AttachStep:
+    """The robot takes ``attachment`` (``planning.collision.Attachment``): from this step
+    on it moves with its link and is checked like a link."""
+
+    index: int
+    attachment: Any
+    type: str = "attach"
+
+    def carried(self, before: frozenset, loc: Loc) -> frozenset:
+        if self.attachment.id in before:
+            raise FieldError((*loc, "object", "id"), f"'{self.attachment.id}' is carried "
+                             "already")
+        return before | {self.attachment.id}
+
+    def plan(self, ctx: _Context, q: np.ndarray) -> _Outcome:
+        t0 = time.perf_counter()
+        try:
+            model = ctx.checker.cm.with_attached([self.attachment])
+        except FieldError as exc:  # a link the robot does not have: named from the step
+            raise FieldError(("steps", self.index, *_step_field(exc.loc)), exc.message) \
+                from None
+        ctx.checker = _rechecked(ctx.checker, model, ctx.checker.scene)
+        a = self.attachment
+        return _held(ctx, q, "attach", f"carrying '{a.id}' on {a.link}", t0)
+
+
+@dataclass(frozen=True)
+class DetachStep:
+    """The robot lets go of the object ``object_id``; with ``place`` it stays where it is,
+    one more object of the scene for the steps after."""
+
+    index: int
+    object_id: str
+    place: bool = True
+    type: str = "detach"
+
+    def carried(self, before: frozenset, loc: Loc) -> frozenset:
+        if self.object_id not in before:
+            carried = ", ".join(sorted(before)) or "nothing"
+            raise FieldError((*loc, "object"), f"'{self.object_id}' is not carried here "
+                             f"(an earlier attach step takes it; carried: {carried})")
+        return before - {self.object_id}
+
+    def plan(self, ctx: _Context, q: np.ndarray) -> _Outcome:
+        t0 = time.perf_counter()
+        cm = ctx.checker.cm
+        scene = ctx.checker.scene
+        if self.place:
+            from planning.collision import CollisionScene
+
+            pose = cm.state_frames(q[None])[0, list(cm.names).index(self.object_id)]
+            (held,) = [a for a in cm.attached if a.id == self.object_id]
+            placed = {**held.object.to_dict(), "pose": pose.tolist()}
+            objects = [] if scene is None else scene.to_dicts()
+            scene = CollisionScene.from_request({"objects": [*objects, placed]})
+        kept = [a for a in cm.attached if a.id != self.object_id]
+        base = cm.without_attached()
+        model = base.with_attached(kept) if kept else base
+        ctx.checker = _rechecked(ctx.checker, model, scene)
+        where = "placed where it is" if self.place else "dropped from the task"
+        return _held(ctx, q, "detach", f"let go of '{self.object_id}' ({where})", t0)
+
+
 # ---- parsing a step ------------------------------------------------------------------------------
 @contextlib.contextmanager
 def _at(loc: Loc) -> Iterator[None]:
@@ -326,11 +426,16 @@ def _parse_move(item: Mapping[str, Any], index: int, model: RobotModel, start: n
         own["seed"] = _seed(item["seed"], (*loc, "seed"))
     if item.get("simplify") is not None:
         own["simplify"] = _flag(item["simplify"], (*loc, "simplify"))
-    # A path ``constraint`` on the move (an orientation to keep, a box to stay in) is read
-    # here when it comes, and handed to the planner with the goal.
+    constraints: tuple = ()
+    if item.get("constraints") is not None:
+        constraints = parse_constraints(item["constraints"], model, loc=(*loc, "constraints"))
+        if goal_pose is not None:
+            raise FieldError((*loc, "goal"), "a constrained move needs its goal as joint "
+                                             "values: {\"q\": [...]}")
     req = MotionRequest(start=start, goal=q_goal, goal_pose=goal_pose, trajectory=False,
                         time_limit=settings["time_limit"], **own)
-    return MoveStep(index, req, _own_time_limit(item, loc, settings["time_limit"]))
+    return MoveStep(index, req, _own_time_limit(item, loc, settings["time_limit"]),
+                    constraints=constraints)
 
 
 def _point_or_pose(v: Any, loc: Loc) -> np.ndarray:
@@ -420,6 +525,35 @@ def _parse_arc(item: Mapping[str, Any], index: int, model: RobotModel, start: np
     return SegmentStep(index, "arc", args, _own_time_limit(item, loc, settings["time_limit"]))
 
 
+def _step_field(loc: Loc) -> Loc:
+    """An attachment's error location from the step: ``("attached", i, field)`` -> field."""
+    return tuple(loc[2:]) if tuple(loc[:1]) == ("attached",) else tuple(loc)
+
+
+def _parse_attach(item: Mapping[str, Any], index: int, model: RobotModel, start: np.ndarray,
+                  settings: Mapping[str, Any], loc: Loc) -> AttachStep:
+    from planning.collision import Attachment
+
+    if item.get("object") is None:
+        raise FieldError((*loc, "object"), "required: the object to carry (a box, sphere, "
+                                           "cylinder, capsule or mesh, as in a scene)")
+    data = {k: item[k] for k in ("object", "link", "pose", "touch_links") if k in item}
+    try:
+        attachment = Attachment.from_dict(data, index)
+    except FieldError as exc:
+        raise FieldError((*loc, *_step_field(exc.loc)), exc.message) from None
+    return AttachStep(index, attachment)
+
+
+def _parse_detach(item: Mapping[str, Any], index: int, model: RobotModel, start: np.ndarray,
+                  settings: Mapping[str, Any], loc: Loc) -> DetachStep:
+    oid = item.get("object")
+    if not isinstance(oid, str) or not oid:
+        raise FieldError((*loc, "object"), "required: the id of an object an earlier attach "
+                                           "step took")
+    return DetachStep(index, oid, _flag(item.get("place", True), (*loc, "place")))
+
+
 @dataclass(frozen=True)
 class StepType:
     """One kind of step: its ``name`` (the step's ``type``), the ``fields`` it takes besides
@@ -434,13 +568,16 @@ class StepType:
 
 _SEGMENT_OPTIONS = ("orientation", "max_step", "max_rotation", "jump_threshold", "time_limit")
 
-#: The kinds of step, by ``type``. ``attach`` and ``detach`` (an object the tool carries from
-#: there on: the step replaces the context's checker) come as rows here.
+#: The kinds of step, by ``type``. ``attach`` and ``detach`` change what the robot carries
+#: from there on (they replace the context's checker).
 STEP_TYPES: dict[str, StepType] = {t.name: t for t in (
-    StepType("move", ("goal", "planner", "time_limit", "seed", "simplify"), _parse_move),
+    StepType("move", ("goal", "planner", "time_limit", "seed", "simplify", "constraints"),
+             _parse_move),
     StepType("line", ("target", *_SEGMENT_OPTIONS), _parse_line),
     StepType("arc", ("target", "via", "centre", "axis", "angle", *_SEGMENT_OPTIONS),
              _parse_arc),
+    StepType("attach", ("object", "link", "pose", "touch_links"), _parse_attach),
+    StepType("detach", ("object", "place"), _parse_detach),
 )}
 
 
@@ -504,8 +641,14 @@ def parse_steps(items: Any, model: RobotModel, start: np.ndarray,
                               "\"arc\", ...})")
     if not 1 <= len(items) <= max_steps:
         raise FieldError(loc, f"give 1 to {max_steps} steps, got {len(items)}")
-    return tuple(_parse_step(item, i, model, start, settings, (*loc, i))
-                 for i, item in enumerate(items))
+    steps = tuple(_parse_step(item, i, model, start, settings, (*loc, i))
+                  for i, item in enumerate(items))
+    carried: frozenset = frozenset()
+    for i, step in enumerate(steps):  # what each step carries: attach before detach
+        change = getattr(step, "carried", None)
+        if change is not None:
+            carried = change(carried, (*loc, i))
+    return steps
 
 
 def robot_task(model: RobotModel, start: Any, steps: Any, *, loc: Loc = (),

@@ -168,6 +168,21 @@ def test_a_bad_field_of_a_step_is_named_with_the_step(served):
     assert loc == ["body", "steps"]
 
 
+def test_attach_and_detach_over_rest(served):
+    """A ball taken at the tool, carried along the line, let go: the steps answer in order;
+    a detach of what no step took is a 422 naming its object."""
+    ahead = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 100.0], [0, 0, 0, 1]]  # 100 mm out
+    ball = {"type": "attach", "object": {"type": "sphere", "id": "ball", "radius": 30},
+            "link": "tool", "pose": ahead}
+    r = _plan(served, steps=[STEPS[0], ball, STEPS[1], {"type": "detach", "object": "ball"}])
+    assert r.status_code == 200, r.text
+    answer = r.json()
+    assert answer["status"] == "ok", answer["message"]
+    assert [s["type"] for s in answer["steps"]] == ["move", "attach", "line", "detach"]
+    loc, msg = _error(_plan(served, steps=[STEPS[0], {"type": "detach", "object": "box"}]))
+    assert loc == ["body", "steps", 1, "object"] and "not carried" in msg
+
+
 def test_a_body_without_steps_is_answered_as_before(served):
     """Without steps a missing or null goal is the error it always was."""
     r = _plan(served)

@@ -235,3 +235,111 @@ def test_progress_goes_step_by_step_and_may_stop_the_task(ur5):
 
     with pytest.raises(Stop):
         plan_task(MotionChecker(cm), Q0, move_line_move(), time_limit=5.0, progress=stop)
+
+
+# ---- carried objects and kept constraints --------------------------------------------------
+def _ball_below_the_tool(radius: float = 50.0, drop: float = 120.0) -> dict:
+    """An attach step: a ball ``drop`` mm below the tool point at Q1, in the tool frame."""
+    T = ur5_fk(Q1)[0]
+    pose = np.eye(4)
+    pose[:3, 3] = T[:3, :3].T @ np.array([0.0, 0.0, -drop])
+    return {"type": "attach", "object": {"type": "sphere", "id": "ball", "radius": radius},
+            "link": "tool", "pose": pose.tolist()}
+
+
+def _low_block(top_below_p1: float) -> CollisionScene:
+    p1 = ur5_fk(Q1)[0, :3, 3]
+    pose = np.eye(4)
+    pose[:3, 3] = p1 + [0.0, 0.0, -top_below_p1 - 20.0]
+    return CollisionScene.from_request({"objects": [
+        {"type": "box", "id": "block", "size": [300.0, 300.0, 40.0], "pose": pose.tolist()}]})
+
+
+def test_a_carried_ball_hits_what_the_bare_arm_clears(ur5):
+    """The line down ends 60 mm above the block for the bare arm; with a ball carried 120 mm
+    below the tool it runs into the block."""
+    model, cm = ur5
+    scene = _low_block(210.0)
+    p1 = ur5_fk(Q1)[0, :3, 3]
+    move, line = ({"type": "move", "goal": {"q": Q1.tolist()}},
+                  {"type": "line", "target": (p1 + DROP).tolist(), "orientation": "hold"})
+    bare = plan_task(MotionChecker(cm, scene), Q0, [move, line], time_limit=5.0)
+    assert bare.status == "ok", bare.message
+    carried = plan_task(MotionChecker(cm, scene), Q0, [move, _ball_below_the_tool(), line],
+                        time_limit=5.0)
+    assert [s.status for s in carried.steps] == ["ok", "ok", "collision"]
+    assert carried.steps[1].type == "attach" and "carrying 'ball'" in carried.steps[1].message
+    assert ("ball", "block") in [tuple(p) for p in carried.steps[2].pairs]
+    # Where the line stopped, the ball (120 mm below the tool, radius 50) is above the
+    # block's top (210 mm below p1), checked here from the test's own FK.
+    stop = ur5_fk(carried.path[carried.steps[2].last])[0, :3, 3]
+    assert stop[2] - 120.0 - 50.0 > p1[2] - 210.0 - 1e-6
+
+
+def test_a_placed_object_stays_in_the_scene(ur5):
+    """Detach with place (the default): the ball stays where it was let go, and the tool's
+    line down through that place collides with it; without place it is gone."""
+    model, cm = ur5
+    p1 = ur5_fk(Q1)[0, :3, 3]
+    steps = [{"type": "move", "goal": {"q": Q1.tolist()}}, _ball_below_the_tool(),
+             {"type": "detach", "object": "ball"},
+             {"type": "line", "target": (p1 + DROP).tolist(), "orientation": "hold"}]
+    placed = plan_task(MotionChecker(cm), Q0, steps, time_limit=5.0)
+    assert [s.status for s in placed.steps] == ["ok", "ok", "ok", "collision"]
+    assert any("ball" in pair for pair in placed.steps[3].pairs)
+    steps[2] = {"type": "detach", "object": "ball", "place": False}
+    dropped = plan_task(MotionChecker(cm), Q0, steps, time_limit=5.0)
+    assert dropped.status == "ok", dropped.message
+
+
+def test_an_object_taken_where_it_collides_stops_the_task(ur5):
+    model, cm = ur5
+    scene = _low_block(100.0)            # the ball (down to 170 mm below p1) is in the block
+    res = plan_task(MotionChecker(cm, scene), Q0,
+                    [{"type": "move", "goal": {"q": Q1.tolist()}}, _ball_below_the_tool()],
+                    time_limit=5.0)
+    assert res.status == "collision" and res.steps[1].type == "attach"
+    assert ("ball", "block") in [tuple(p) for p in res.pairs]
+
+
+@pytest.mark.parametrize("steps, loc", [
+    ([{"type": "detach", "object": "ball"}], ("steps", 0, "object")),
+    ([_ball_below_the_tool(), _ball_below_the_tool()], ("steps", 1, "object", "id")),
+    ([{"type": "attach", "object": {"type": "sphere", "id": "b", "radius": 10},
+       "link": "link9"}], ("steps", 0, "link")),
+    ([{"type": "attach"}], ("steps", 0, "object")),
+    ([{"type": "move", "goal": {"q": Q1.tolist()},
+       "constraints": [{"type": "axis", "direction": [0, 0, -1], "tolerance": 0.0}]}],
+     ("steps", 0, "constraints", 0, "tolerance")),
+])
+def test_bad_carry_and_constraint_steps_name_the_field(ur5, steps, loc):
+    model, cm = ur5
+    with pytest.raises(FieldError) as err:
+        plan_task(MotionChecker(cm), Q0, steps, time_limit=1.0)
+    assert tuple(err.value.loc) == loc
+
+
+def test_a_constrained_move_keeps_the_tool_axis_at_every_state(ur5):
+    """A move with an axis constraint: the tool stays within 0.1 rad of straight down at
+    every state of the answered path, measured here at fine steps with the test's FK."""
+    model, cm = ur5
+    start = np.array([0.0, -1.2, 1.5, -math.pi / 2 - 0.3, -math.pi / 2, 0.0])
+    goal = start + [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    keep = [{"type": "axis", "direction": [0.0, 0.0, -1.0], "tolerance": 0.1}]
+    res = plan_task(MotionChecker(cm), start,
+                    [{"type": "move", "goal": {"q": goal.tolist()}, "constraints": keep}],
+                    time_limit=10.0, trajectory=False)
+    assert res.status == "ok", res.message
+    assert res.steps[0].planner == "constrained"
+    np.testing.assert_allclose(res.path[-1], goal, atol=1e-9)
+    fine = [res.path[:1]]
+    for a, b in zip(res.path[:-1], res.path[1:]):
+        n = max(1, math.ceil(np.abs(b - a).max() / 0.005))
+        fine.append(a + (b - a) * (np.arange(1, n + 1) / n)[:, None])
+    z = ur5_fk(np.concatenate(fine))[:, :3, 2]
+    tilt = np.arccos(np.clip(z @ [0.0, 0.0, -1.0], -1.0, 1.0))
+    assert tilt.max() <= 0.1 + 1e-3
+    with pytest.raises(FieldError) as err:
+        plan_task(MotionChecker(cm), start, [{"type": "move", "goal": {
+            "pose": ur5_fk(goal)[0].tolist()}, "constraints": keep}], time_limit=1.0)
+    assert tuple(err.value.loc) == ("steps", 0, "goal")
