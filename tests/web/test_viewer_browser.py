@@ -70,7 +70,7 @@ def browser(service):
 
 
 def _open(browser, viewer: Viewer):
-    page = browser.new_page(viewport={"width": 900, "height": 600})
+    page = browser.new_page(viewport={"width": 640, "height": 400})
     page.set_default_timeout(TIMEOUT_MS)
     page.goto(f"http://127.0.0.1:{viewer.port}")
     # viser's client retries a websocket connection only while its page has the focus.
@@ -228,7 +228,7 @@ def test_a_keyed_viewer_in_a_browser(service, browser, tmp_path_factory):
     api, _ = service
     key = "browser-test-key"
     viewer = Viewer.start("127.0.0.1", 0, api.state, environment_map=False, api_key=key)
-    context = browser.new_context(viewport={"width": 900, "height": 600})
+    context = browser.new_context(viewport={"width": 640, "height": 400})
     try:
         page = context.new_page()
         page.set_default_timeout(TIMEOUT_MS)

@@ -405,7 +405,7 @@ def page(service):
     api, _ = service
     with sync_api.sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        page = browser.new_page(viewport={"width": 1100, "height": 700})
+        page = browser.new_page(viewport={"width": 640, "height": 400})
         page.set_default_timeout(TIMEOUT_MS)
         page.goto(f"http://127.0.0.1:{api.state.viewer.port}")
         page.bring_to_front()  # viser's client connects only while its page has the focus
