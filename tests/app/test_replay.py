@@ -16,8 +16,8 @@ import zipfile
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from stored_jobs import store_job as _store
 
-from app.jobs.catalog import KINDS
 from app.replay import MAX_FRAMES, MAX_TRIANGLES, decimate
 from kinematics.fk import fk, fk_frames, joint_axes
 from kinematics.library import builtin_model
@@ -30,21 +30,6 @@ GLT_GOAL = np.array([1.0, 0.3, -0.3, 0.0, 0.5, 0.0])
 DATA = re.compile(r'<script id="replay-data" type="application/json">(.*?)</script>', re.S)
 #: Rounding of the embedded poses: rotation entries (1e-5) and lengths (0.01 mm).
 ROT_TOL, MM_TOL = 1e-5, 0.01
-
-
-def _store(client: TestClient, job_id: str, kind: str, params: dict, result: dict | None,
-           status: str = "succeeded", error: str | None = None) -> None:
-    """A job of ``kind`` as the service keeps it once ended (``result`` checked against the
-    kind's result model first), or queued when ``status`` is 'queued'."""
-    store = client.app.state.store
-    store.add_job(job_id, kind, params, {})
-    if status == "queued":
-        return
-    text = None
-    if result is not None:
-        KINDS[kind].load_result(result)
-        text = json.dumps(result)
-    store.finish_job(job_id, status, result_json=text, error=error)
 
 
 def _page(client: TestClient, url: str) -> tuple[str, dict]:

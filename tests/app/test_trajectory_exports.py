@@ -20,9 +20,9 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from stored_jobs import store_job as _store
 
 from app.config import Settings
-from app.jobs.catalog import KINDS
 from app.main import create_app
 from app.trajectory_export import durations
 from kinematics.library import builtin_model
@@ -228,21 +228,6 @@ def test_a_one_problem_job_takes_neither_arm_nor_problem(served):
 
 
 # ---- other kinds, stored as a worker leaves them ----------------------------------------
-def _store(client: TestClient, job_id: str, kind: str, params: dict, result: dict | None,
-           status: str = "succeeded", error: str | None = None) -> None:
-    """A job of ``kind`` as the service keeps it once ended (``result`` checked against the
-    kind's result model first), or queued when ``status`` is 'queued'."""
-    store = client.app.state.store
-    store.add_job(job_id, kind, params, {})
-    if status == "queued":
-        return
-    text = None
-    if result is not None:
-        KINDS[kind].load_result(result)
-        text = json.dumps(result)
-    store.finish_job(job_id, status, result_json=text, error=error)
-
-
 #: Per joint of the tunnel arm: q = A + B t + C t² (rad / mm).
 A = np.array([0.1, -1.2, 6000.0, 0.0, 1.2, 1.5, 500.0])
 B = np.array([0.02, 0.01, 150.0, -0.05, 0.0, 0.03, 80.0])

@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 import pytest
+from chromium_setup import CHROMIUM, CHROMIUM_ARGS, TIMEOUT_MS
 from fastapi.testclient import TestClient
 
 from app.config import Settings
@@ -26,11 +27,6 @@ sync_api = pytest.importorskip("playwright.sync_api",
 
 pytestmark = pytest.mark.browser
 
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--disable-quic",
-                 "--no-first-run"]
-TIMEOUT_MS = 20_000
 GLT = "glt_palletizer"
 MOTION = {"robot": GLT, "start": [-1.0, 0.3, -0.3, 0.0, 0.5, 0.0],
           "goal": {"q": [1.0, 0.3, -0.3, 0.0, 0.5, 0.0]}, "planner": "rrt_connect",

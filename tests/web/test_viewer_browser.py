@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 import pytest
+from chromium_setup import CHROMIUM, CHROMIUM_ARGS, TIMEOUT_MS
 from fastapi.testclient import TestClient
 
 from app.config import Settings
@@ -30,11 +31,6 @@ sync_api = pytest.importorskip("playwright.sync_api",
 
 pytestmark = pytest.mark.browser
 
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--disable-quic",
-                 "--no-first-run"]
-TIMEOUT_MS = 20_000
 ROBOT = "/robot/pile_driver"
 STEPS = 2  # arrow-key presses on the slider
 

@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 import pytest
+from chromium_setup import CHROMIUM, CHROMIUM_ARGS, TIMEOUT_MS
 from fastapi.testclient import TestClient
 
 from app.config import Settings
@@ -373,11 +374,6 @@ def test_an_imported_robot_moves_its_meshes_along_a_motion_answer(api, glt_meshe
 
 
 # ---- in a browser -------------------------------------------------------------------------
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--disable-quic",
-                 "--no-first-run"]
-TIMEOUT_MS = 20_000
 NODE_POSITION = """(name) => {
     const p = window.__viserMutable && window.__viserMutable.nodePoseData[name];
     return p ? Array.from(p.position) : null; }"""
