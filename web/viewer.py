@@ -682,20 +682,27 @@ class Viewer:
         """The viewer's workspace job if it is still queued or running (under the lock)."""
         return self._in_flight(self._workspace_job)
 
+    def _look_up(self, job_id: str, panel: Any) -> tuple[bool, Any]:
+        """Whether the viewer's job ``job_id`` could be read, and its record (None once it
+        vanished); with the data store down, ``panel`` says so and the next poll tries
+        again."""
+        try:
+            return True, self.jobs.get(job_id)
+        except KeyError:
+            return True, None
+        except StoreError as exc:
+            with self._lock:
+                panel.content = (f"Job {code(job_id)}: the data store is unavailable "
+                                 f"({plain(exc.reason)}); still waiting")
+            return False, None
+
     def _poll_workspace(self) -> None:
         with self._lock:
             job_id = self._workspace_job
         if job_id is None:
             return
-        try:
-            job = self.jobs.get(job_id)
-        except KeyError:
-            job = None
-        except StoreError as exc:  # the store is down: say so, poll again later
-            with self._lock:
-                self.gui.workspace.content = (f"Job {code(job_id)}: the data store is "
-                                              f"unavailable ({plain(exc.reason)}); still "
-                                              "waiting")
+        read, job = self._look_up(job_id, self.gui.workspace)
+        if not read:
             return
         with self._lock:
             if job is None or job.status in ("failed", "cancelled"):
@@ -789,13 +796,8 @@ class Viewer:
             job_id = self._motion_job
         if job_id is None:
             return
-        try:
-            job = self.jobs.get(job_id)
-        except KeyError:
-            job = None
-        except StoreError:
-            return  # the store is down: poll again later
-        if job is not None and job.status in ("queued", "running"):
+        read, job = self._look_up(job_id, self.gui.motion)
+        if not read or (job is not None and job.status in ("queued", "running")):
             return
         with self._lock:
             self._motion_job = None
