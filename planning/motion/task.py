@@ -274,7 +274,6 @@ class MoveStep:
             states = kept.path if len(kept.path) else q[None]
             return _Outcome(kept.status.value, kept.message, states, "constrained",
                             planning_time_s=kept.planning_time_s, pairs=tuple(kept.pairs),
-                            deviation=kept.worst_violation if kept.success else None,
                             goal=r.goal if kept.success else None)
         res = plan_checked(ctx.checker, q, r.goal, r.goal_pose, model=ctx.model,
                            planner=r.planner, time_limit=limit, seed=r.seed,
