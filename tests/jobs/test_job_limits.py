@@ -307,17 +307,20 @@ def test_check_params_alone():
 def test_a_job_over_its_time_limit_fails_saying_so(tmp_path):
     settings = Settings(no_viewer=True, data_dir=tmp_path, workers=1)
     with TestClient(create_app(settings)) as client:
+        # A first job starts the worker processes' server (seconds on a loaded machine,
+        # not what this test measures).
+        assert wait_for(client, post(client, "echo", {}).json()["id"])["status"] == "succeeded"
         r = post(client, "sleep", {"seconds": 30, "steps": 300}, time_limit_s=1)
         assert r.status_code == 202 and r.json()["time_limit_s"] == 1
         job_id = r.json()["id"]
         wait_for(client, job_id, statuses=("running",))
         t0 = time.monotonic()
-        job = wait_for(client, job_id, timeout=10)
+        job = wait_for(client, job_id, timeout=25)
         assert job["status"] == "failed", job
         assert job["error"] == "time limit of 1 s exceeded"
         # Within seconds of the limit, not the 30 s the job would sleep (a loaded machine
-        # took 3.7 s once).
-        assert time.monotonic() - t0 < 8.0
+        # took 3.7 s once; the test tier running beside the cluster tier gets little CPU).
+        assert time.monotonic() - t0 < 15.0
         # The worker is free again.
         echo = post(client, "echo", {"value": 1}).json()["id"]
         assert wait_for(client, echo)["status"] == "succeeded"

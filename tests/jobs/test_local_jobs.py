@@ -138,6 +138,8 @@ def test_a_worker_killed_mid_job(jobs_client):
 def test_cancel_queued_and_running(tmp_path):
     settings = Settings(no_viewer=True, data_dir=tmp_path, workers=1)
     with TestClient(create_app(settings)) as client:
+        # A first job starts the worker processes' server (not what this test measures).
+        assert wait_for(client, submit(client, "echo", value=1))["status"] == "succeeded"
         running = submit(client, "sleep", seconds=30, steps=300)
         queued = submit(client, "sleep", seconds=30)
         wait_for(client, running, statuses=("running",))
