@@ -195,6 +195,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.include_router(jobs.router)
     api.include_router(exports.router)
     api.include_router(replay.router)
+    api.include_router(replay.motion_router)
     api.include_router(scenes.router)
     api.include_router(scenes.write_router, dependencies=guarded)
     api.include_router(viewer.router, dependencies=guarded)

@@ -475,10 +475,12 @@ def _at(track: Track, times: np.ndarray) -> np.ndarray:
 
 def build_replay(job_id: str, kind: str, params: Mapping[str, Any], result: Mapping[str, Any],
                  models: Models, imported: Imported | None = None, *,
-                 arm: str | None = None, problem: int | None = None) -> Replay:
+                 arm: str | None = None, problem: int | None = None,
+                 scene: Any = None) -> Replay:
     """The replay of a succeeded job: its trajectory (``extract`` and ``select`` of
     ``app.trajectory_export``: a batch's first solved problem, or ``problem``; every arm of a
-    multiarm plan, or ``arm``), the robot drawn along it, its scene. ``models(id)`` and
+    multiarm plan, or ``arm``), the robot drawn along it, its scene (``scene``, a built
+    collision scene, is drawn instead of the params' one when given). ``models(id)`` and
     ``imported(id)`` (the ``ImportedRobot`` or None) are the registry's. ``ExportError`` for
     a job without a trajectory, as the trajectory export says it."""
     tracks = extract(kind, params, result, models)
@@ -502,7 +504,9 @@ def build_replay(job_id: str, kind: str, params: Mapping[str, Any], result: Mapp
             root = str(track.robot)
         color = ARM_COLORS.get(str(label), PATH_COLOR)
         _add_robot(replay, root, model, robot, q, color)
-    if kind == "motion":
+    if scene is not None:
+        _add_objects(replay, scene.objects)
+    elif kind == "motion":
         _motion_scene(replay, params)
     elif kind == "path":
         _path_scene(replay, params)

@@ -303,6 +303,15 @@ class Client:
         out = self._json("POST", f"/robots/{robot_id}/motion", json_body=body)
         return _motion_arrays(out)
 
+    def motion_replay(self, robot_id: str, answer: Mapping[str, Any],
+                      scene: str | Mapping[str, Any] | None = None) -> str:
+        """An answer of ``motion`` as one self-contained HTML page that plays it offline
+        (``POST /robots/{id}/motion/replay.html``), with ``scene`` (as planned in) drawn."""
+        body = {"answer": {"robot": answer.get("robot", robot_id),
+                           "trajectory": answer.get("trajectory")}, "scene": scene}
+        return self._request("POST", f"/robots/{robot_id}/motion/replay.html",
+                             json_body=body).text
+
     def trajectory(self, waypoints: Any, durations: Any = None, *, method: str = "quintic",
                    dt: float = 0.01, robot: str | None = None, **fields: Any
                    ) -> dict[str, Any]:

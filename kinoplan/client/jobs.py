@@ -179,6 +179,12 @@ class Job:
                           stacklevel=2)
             return data
 
+    def replay_html(self, **query: Any) -> str:
+        """The succeeded job's motion as one self-contained HTML page that plays offline
+        (``GET /jobs/{id}/replay.html``; ``query``: ``problem=k`` or ``arm=...``)."""
+        return self.client._request("GET", f"/jobs/{self.id}/replay.html",
+                                    params=query).text
+
     def cancel(self) -> dict[str, Any] | None:
         """Cancel the job (``DELETE /jobs/{id}``): a queued job at once, a running one
         within 2 s; its record. A job that has ended is deleted with its result: None."""

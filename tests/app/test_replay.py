@@ -373,3 +373,57 @@ def test_jobs_without_a_trajectory_are_422_as_for_the_trajectory_export(client):
     _store(client, "one", "motion", {"robot": GLT}, result)
     r = client.get("/jobs/one/replay.html?problem=1")
     assert r.status_code == 422 and _detail(r)["loc"] == ["query", "problem"]
+
+
+# ---- a motion answer posted back ------------------------------------------------------------
+def test_a_posted_motion_answer_replays_with_its_scene(client):
+    model = builtin_model(GLT)
+    scene = {"objects": SCENE["objects"][:2]}
+    body = {"start": GLT_START.tolist(), "goal": {"q": GLT_GOAL.tolist()}, "scene": scene,
+            "time_limit": 2.0}
+    answer = client.post(f"/robots/{GLT}/motion", json=body).json()
+    assert answer["status"] == "ok", answer
+    r = client.post(f"/robots/{GLT}/motion/replay.html", json={"answer": answer,
+                                                               "scene": scene})
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"].startswith("text/html")
+    assert not re.search(r"https?://", r.text)
+    (found,) = DATA.findall(r.text)
+    data = json.loads(found)
+    assert data["kind"] == "motion" and data["robots"] == [GLT]
+    t = np.asarray(answer["trajectory"]["t"])
+    q = np.asarray(answer["trajectory"]["q"])
+    assert data["frames"] == len(t)
+    np.testing.assert_allclose(data["t"], t - t[0], atol=1e-6)
+    for k in (0, len(q) // 2, len(q) - 1):
+        _close(_poses(data, f"{GLT}/tool")[k], fk(model, q[k]))
+    names = {n["name"] for n in data["nodes"]}
+    assert {"scene/pallet", "scene/ball"} <= names and "scene/post" not in names
+    # without a scene: the robot alone
+    r = client.post(f"/robots/{GLT}/motion/replay.html", json={"answer": answer})
+    (found,) = DATA.findall(r.text)
+    assert not any(n["name"].startswith("scene/") for n in json.loads(found)["nodes"])
+
+
+def test_a_posted_answer_that_does_not_fit_is_422_naming_the_field(client):
+    t, q = [0.0, 1.0], [GLT_START.tolist(), GLT_GOAL.tolist()]
+    url = f"/robots/{GLT}/motion/replay.html"
+
+    def loc(body: dict, status: int = 422) -> list:
+        r = client.post(url, json=body)
+        assert r.status_code == status, r.text
+        return _detail(r)["loc"]
+
+    assert loc({"answer": {"robot": "ur5", "trajectory": {"t": t, "q": q}}}) == [
+        "body", "answer", "robot"]
+    assert loc({"answer": {"trajectory": {"t": t, "q": [row[:5] for row in q]}}}) == [
+        "body", "answer", "trajectory", "q"]
+    assert loc({"answer": {"trajectory": {"t": [1.0, 0.5], "q": q}}}) == [
+        "body", "answer", "trajectory"]
+    assert loc({"answer": {"trajectory": {"t": t, "q": q[:1]}}}) == [
+        "body", "answer", "trajectory"]
+    assert loc({"answer": {"status": "ok"}}) == ["body", "answer", "trajectory"]
+    assert loc({"answer": {"trajectory": {"t": t, "q": q}}, "scene": "no-such-scene"},
+               404) == ["path", "scene_id"]
+    assert client.post("/robots/no-such-robot/motion/replay.html",
+                       json={"answer": {"trajectory": {"t": t, "q": q}}}).status_code == 404

@@ -358,6 +358,8 @@ def test_a_planned_move_goes_around_the_ball_of_a_stored_scene(client):
     traj = plan["trajectory"]
     assert traj["q"].shape == (len(traj["t"]), 6) and np.all(np.diff(traj["t"]) > 0)
     np.testing.assert_allclose(traj["q"][[0, -1]], [START, GOAL], atol=1e-9)
+    page = client.motion_replay(ROBOT, plan, scene="client_ball")
+    assert page.startswith("<!DOCTYPE html>") and '"scene/ball"' in page
 
     to_pose = client.motion(ROBOT, START, fk(robot, np.array(GOAL)), scene="client_ball",
                             planner="rrt_connect", trajectory=False, time_limit=1.5)
@@ -408,6 +410,9 @@ def test_a_job_is_followed_to_its_typed_result(client, capsys):
     assert again.kind == "sleep" and again.result().pid == result.pid
     assert job.id in [r["id"] for r in client.jobs(kind="sleep", status="succeeded")]
     assert "sleep" in [k["kind"] for k in client.job_kinds()]
+    with pytest.raises(InvalidError) as no_motion:                  # a sleep has no motion
+        job.replay_html()
+    assert no_motion.value.status == 422 and no_motion.value.field == ["path", "job_id"]
 
     capsys.readouterr()
     client.submit("sleep", {"seconds": 0.2, "steps": 2}).wait(timeout=60)  # stderr: no tty
