@@ -34,6 +34,11 @@ What each drawer reads, in mm, rad, s:
   joint speed in ``DEFAULT_SECONDS``. The tool's route (FK of the samples) is a polyline, the
   waypoints' tool points balls. ``plan_from_motion`` draws the answer of
   ``POST /robots/{id}/motion`` the same way (no scene: it carries none).
+  A task (params ``steps``, result ``steps`` with each step's ``states``): the tool path of
+  each line and arc step is a polyline of its own (``segments/<step index>``; its inner
+  states get no waypoint ball), and ``Plan.task`` (``web.tasks.TaskTrack``) holds when each
+  step plays, what it holds and the loads its attach steps take, which the viewer draws
+  under ``loads/<id>`` and moves during playback.
 """
 
 from __future__ import annotations
@@ -58,6 +63,7 @@ from kinematics.model import RobotModel
 from planning.motion import PRISMATIC_SCALE
 
 from .site import object_bounds_mm
+from .tasks import SEGMENT_COLOR, TaskTrack, state_times, step_tool_paths, task_track
 from .text import code, plain
 
 __all__ = [
@@ -130,6 +136,8 @@ class Polyline:
     name: str
     points: np.ndarray
     color: tuple[int, int, int]
+    #: Thickness relative to the plan's lines (``web.scene.draw_plan``).
+    width: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -193,6 +201,8 @@ class Plan:
     sites: tuple[Site, ...] = ()
     motions: dict[str, Motion] = field(default_factory=dict)
     summary: str = ""
+    #: A task's steps as played and the loads it carries (``web.tasks``); None otherwise.
+    task: TaskTrack | None = None
 
     @property
     def duration(self) -> float:
@@ -549,12 +559,15 @@ def _motion_site(scene: Any) -> tuple[tuple[Site, ...], str]:
 
 def _motion_plan(model: RobotModel, one: Any, key: str, *, job: str, head: str,
                  start: Any = None, goal: Any = None, asked: str = "params",
-                 site: tuple[Site, ...] = (), notes: tuple[str, ...] = ()) -> Plan:
+                 site: tuple[Site, ...] = (), notes: tuple[str, ...] = (),
+                 steps: Any = None) -> Plan:
     """The plan of one motion problem's outcome ``one`` (a ``MotionOut``: ``status``,
     ``path``, ``trajectory``, ``goal``, ...; ``key`` names it in errors) for ``model``.
     ``start (dof,)`` and ``goal`` (a ``GoalIn``) are the problem's (``asked`` names them),
     when known: the arm waits at the start of an unsolved problem, and the goal ball marks
-    the goal asked for."""
+    the goal asked for. ``steps``: a task's steps as asked (the job's ``params.steps``),
+    read with the result's ``steps``: the tool path of each line and arc, the step played
+    and the loads carried (``web.tasks``)."""
     weights = _metric_weights(model)
     path = _joints(one.path, f"{key}.path", model) if one.path else np.zeros((0, model.dof))
     trajectory = one.trajectory
@@ -593,6 +606,20 @@ def _motion_plan(model: RobotModel, one: Any, key: str, *, job: str, head: str,
     size = max(0.01 * float(np.linalg.norm(np.ptp(extent, axis=0))), 5.0) \
         if len(extent) else 5.0
     polylines = (Polyline("tool_path", tool, PATH_COLOR),) if len(tool) > 1 else ()
+    track = None
+    done = getattr(one, "steps", None)
+    if steps is not None and done and motion is not None and len(path):
+        times = state_times(path, motion.t, motion.q, weights)
+        track = task_track(model, steps, done, path, times, key=f"{asked}.steps")
+        segments = step_tool_paths(model, path, done)   # states checked by task_track
+        polylines += tuple(Polyline(f"segments/{i}", points, SEGMENT_COLOR, width=1.5)
+                           for i, points in segments.items())
+        # A line's or an arc's states are its own polyline: balls only where steps meet.
+        inner = np.zeros(len(path), dtype=bool)
+        for s in done:
+            if s.index in segments:
+                inner[s.states[0] + 1:s.states[1]] = True
+        marks = marks[~inner]
     spheres = [Spheres("waypoints", marks, np.full(len(marks), 0.6 * size), WAYPOINT_COLOR)] \
         if len(marks) else []
     spheres += [Spheres(name, _points([p]), np.array([size]), color)
@@ -614,10 +641,15 @@ def _motion_plan(model: RobotModel, one: Any, key: str, *, job: str, head: str,
                                                      for a, b in one.pairs))
         if q_start is not None:
             lines.append("- arm: at the start")
-    lines.append("- green: the tool's route, yellow: waypoints, blue: start, red: goal")
+    legend = "- green: the tool's route, yellow: waypoints, blue: start, red: goal"
+    if track is not None:
+        lines.append(f"- task: {len(track.spans)} of {track.total} steps planned, "
+                     f"{len(track.loads)} load(s)")
+        legend += ", magenta: lines and arcs, brown: loads"
+    lines.append(legend)
     return Plan(job, "motion", robot=model.id, polylines=polylines, spheres=tuple(spheres),
                 sites=site, motions={"": motion} if motion is not None else {},
-                summary="\n".join(lines))
+                summary="\n".join(lines), task=track)
 
 
 def _check_joints(joints: list[str], model: RobotModel, key: str) -> None:
@@ -654,8 +686,9 @@ def _motion_job(params: MotionParams, result: MotionJobResult, ctx: DrawContext)
     notes.append(f"- scene: {scene_text}")
     head = (f"**Motion** of {code(model.id)} (job {code(ctx.job)}, {plain(one.planner)}): "
             f"**{plain(one.status)}**")
+    steps = params.steps if result.problems is None else None
     return _motion_plan(model, one, key, job=ctx.job, head=head, start=start, goal=goal,
-                        asked=asked_key, site=site, notes=tuple(notes))
+                        asked=asked_key, site=site, notes=tuple(notes), steps=steps)
 
 
 def plan_from_motion(answer: Any, *, models: ModelLookup) -> Plan:

@@ -398,7 +398,8 @@ def draw_plan(scene: Any, root: str, plan: Any, size_m: float) -> dict[str, Any]
         )
     for p in plan.polylines:
         name = f"{root}/{p.name}"
-        handles[name] = add_segments(scene, name, p.points, p.color, line)
+        handles[name] = add_segments(scene, name, p.points, p.color,
+                                     line * p.width)
     for s in plan.spheres:
         if len(s.centers) > MAX_SPHERE_NODES:  # many holes: one node, not hundreds
             name = f"{root}/{s.name}"

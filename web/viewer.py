@@ -82,6 +82,7 @@ from .scene import (
     wxyz_from_matrix,
 )
 from .site import SCENE_ROOT, SiteNodes, draw_site
+from .tasks import LoadNodes, check_links, link_frame
 from .text import code, plain
 
 __all__ = ["Viewer", "JobNotReady", "MM_TO_M", "wxyz_from_matrix", "ROBOT_ROOT", "PLAN_ROOT",
@@ -139,6 +140,7 @@ class Viewer:
         self._generation = 0  # bumped whenever the robot changes (stale IK answers drop)
         self._plan: Plan | None = None
         self._plan_handles: dict[str, Any] = {}
+        self._loads: LoadNodes | None = None  # a task's carried loads (``web.tasks``)
         self._time = 0.0
         self._playing = False
         self._ik_pending: tuple[np.ndarray, bool] | None = None
@@ -515,6 +517,8 @@ class Viewer:
                       if a.collision is not None]
             if self._plan is not None:
                 boxes.append(self._plan.bounds())
+            if self._loads is not None:
+                boxes.append(self._loads.bounds)
             if self._site is not None:
                 boxes.append(self._site.bounds)
             found = union_bounds(boxes)
@@ -855,6 +859,8 @@ class Viewer:
                 if arm not in self._arms:
                     raise ValueError(f"the plan moves arm '{arm}', which '{self._key}' "
                                      "does not have")
+            if plan.task is not None and plan.task.loads and plan.motions:
+                check_links(plan.task.loads, self._link_frames(next(iter(plan.motions))))
             with self.server.atomic():
                 self._clear_plan()
                 self._plan = plan
@@ -865,6 +871,10 @@ class Viewer:
                     self._plan_handles.update(draw_site(
                         self.server.scene, site.name, site.objects,
                         root=f"{root}/{site.name}").handles)
+                if plan.task is not None and plan.task.loads and plan.motions:
+                    self._loads = LoadNodes(self.server.scene, root, plan.task.loads,
+                                            self._link_frames(next(iter(plan.motions))))
+                    self._plan_handles.update(self._loads.handles)
                 self.gui.plan.content = plan.summary
                 self.gui.set_playback(plan.duration)
                 self._time = 0.0
@@ -874,6 +884,22 @@ class Viewer:
                 self._frame_cameras()
             self._remember()
             return {**self.current, "nodes": sorted(self._plan_handles)}
+
+    def _link_frames(self, arm: str):
+        """``frame(link, q)``: the world pose (mm) of a link of ``arm`` at ``q``, where the
+        collision checker puts what the link carries (``web.tasks.link_frame``)."""
+        model = self._arms[arm].model
+        imported = self._imported(model)
+        return lambda link, q: link_frame(model, imported, link, q)
+
+    @property
+    def loads(self) -> dict[str, np.ndarray | None]:
+        """The world pose ``T_world_object (4, 4)`` mm of each load of the task shown, by its
+        node name under ``<plan>/loads`` (None while hidden)."""
+        with self._lock:
+            if self._loads is None:
+                return {}
+            return {k: (None if v is None else v.copy()) for k, v in self._loads.poses.items()}
 
     @property
     def plan_nodes(self) -> list[str]:
@@ -887,6 +913,7 @@ class Viewer:
             root.remove()
         self._plan_handles = {}
         self._plan = None
+        self._loads = None
         self._playing = False
         self.gui.plan.content = "No plan shown: `POST /viewer/show {\"job\": id}`."
         self.gui.set_playback(0.0)
@@ -916,6 +943,14 @@ class Viewer:
         with self.server.atomic():
             for arm, motion in self._plan.motions.items():
                 self.set_q(motion.at(self._time), arm, source="playback")
+            if self._loads is not None:
+                self._loads.update(self._time, self._arms[next(iter(self._plan.motions))].q)
+            task = self._plan.task
+            if task is not None:
+                live = task.text_at(self._time)
+                text = self._plan.summary + (f"\n\n{live}" if live else "")
+                if self.gui.plan.content != text:
+                    self.gui.plan.content = text
             if abs(self.gui.time.value - self._time) > 1e-9:
                 self.gui.time.value = self._time
 
