@@ -20,11 +20,14 @@ from collections.abc import Iterable
 
 import numpy as np
 
-__all__ = ["VIEW_DIRECTION", "PANEL_PX", "DEFAULT_FOV_RAD", "DEFAULT_CANVAS_PX", "MARGIN",
-           "MIN_RADIUS_M", "View", "frame_bounds", "union_bounds"]
+__all__ = ["VIEW_DIRECTION", "RIG_VIEW_DIRECTION", "PANEL_PX", "DEFAULT_FOV_RAD",
+           "DEFAULT_CANVAS_PX", "MARGIN", "MIN_RADIUS_M", "View", "frame_bounds", "union_bounds"]
 
 #: From the target towards the camera: front left, above (unit vector).
 VIEW_DIRECTION = np.array([0.35, -0.8, 0.4]) / np.linalg.norm([0.35, -0.8, 0.4])
+#: For a rig (a jumbo's booms drilling a face ahead of them along +x): from behind the rig,
+#: a little left and above, so the face is seen face-on past the booms.
+RIG_VIEW_DIRECTION = np.array([-0.85, -0.3, 0.45]) / np.linalg.norm([-0.85, -0.3, 0.45])
 #: Width (px) the control panel covers at the canvas' right edge, margin included.
 PANEL_PX = 340.0
 #: viser's default vertical field of view, and a canvas size assumed before a browser says.

@@ -60,7 +60,7 @@ from kinematics.ik import solve_ik
 from kinematics.ik.result import IKResult
 from kinematics.model import RobotModel
 
-from .camera import View, frame_bounds, union_bounds
+from .camera import RIG_VIEW_DIRECTION, VIEW_DIRECTION, View, frame_bounds, union_bounds
 from .collision import CollisionSpheres
 from .gate import Gate, lock_websockets_server, new_secret
 from .gui import (
@@ -93,6 +93,8 @@ log = logging.getLogger(__name__)
 ROBOT_ROOT = "/robot"
 PLAN_ROOT = "/plan"
 IK_TARGET = "/ik/target"
+#: The IK gizmo: its size as a share of the arm's reach, and its opacity.
+GIZMO_SCALE, GIZMO_OPACITY = 0.12, 0.6
 #: Period (s) of the viewer's own loop: playback frames and job polling.
 TICK_S = 1.0 / 30.0
 #: How often (s) the robot list is compared with the registry.
@@ -171,7 +173,9 @@ class Viewer:
         self._options = self._robot_options()
         first = self._options[0]
         self.gui = ControlPanel(server.gui, self._options, first)
-        self.gizmo = scene.add_transform_controls(IK_TARGET, scale=0.3, depth_test=False)
+        # Translucent and about a tenth of the arm's reach: the tool stays visible under it.
+        self.gizmo = scene.add_transform_controls(IK_TARGET, scale=0.3, depth_test=False,
+                                                  opacity=GIZMO_OPACITY)
         self._wire()
         self.select(first)
         server.on_client_connect(self._on_connect)
@@ -313,7 +317,7 @@ class Viewer:
         T = drawing.T_base_tool
         self.gizmo.position = T[:3, 3] * MM_TO_M
         self.gizmo.wxyz = wxyz_from_matrix(T[:3, :3])
-        self.gizmo.scale = max(0.15, 0.25 * reach_m(self._arms[self._active].model))
+        self.gizmo.scale = max(0.1, GIZMO_SCALE * reach_m(self._arms[self._active].model))
 
     def _remember(self) -> None:
         if len(self._arms) == 1 and "" in self._arms:
@@ -528,7 +532,9 @@ class Viewer:
         """Camera ``(position, look_at)`` (m) framing everything drawn (``web.camera``) on a
         canvas ``view`` (default: an assumed one)."""
         lo, hi = self.content_bounds()
-        return frame_bounds(lo * MM_TO_M, hi * MM_TO_M, view)
+        rig = self._key in self.registry.rigs
+        return frame_bounds(lo * MM_TO_M, hi * MM_TO_M, view,
+                            direction=RIG_VIEW_DIRECTION if rig else VIEW_DIRECTION)
 
     def _frame_cameras(self) -> None:
         """Point every browser's camera (and "reset view") at everything drawn, and size the

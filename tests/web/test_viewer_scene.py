@@ -243,6 +243,17 @@ def test_the_rig_is_drawn_as_three_arms(api):
     # The arms are 2 m apart along y: their base discs are too.
     ys = sorted(v.tool_position(a)[1] for a in roots)
     np.testing.assert_allclose(np.diff(ys), [2000.0, 2000.0], atol=1e-6)
+    # Framed face-on: the camera looks along the tunnel (+x, towards the face the booms
+    # drill), not across it as it does at a single arm.
+    look = np.asarray(v.server.initial_camera.look_at) - v.server.initial_camera.position
+    look /= np.linalg.norm(look)
+    assert look[0] > 0.8 and abs(look[1]) < 0.4
+    v.select("glt_palletizer")
+    look = np.asarray(v.server.initial_camera.look_at) - v.server.initial_camera.position
+    assert abs(look[1]) / np.linalg.norm(look) > 0.7
+    # The IK gizmo is a tenth of the arm's reach, translucent: the tool shows under it.
+    # (The palletizer reaches 1.9 m: README's workspace.)
+    assert 0.1 <= v.gizmo.scale <= 0.3 and v.gizmo.opacity < 1.0
 
 
 def test_a_browser_slider_moves_the_arm_and_shows_cylinders(api):
