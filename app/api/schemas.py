@@ -8,8 +8,8 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from kinematics.model import MAX_DOF, MAX_LENGTH_MM
 from kinematics.workspace import DEFAULT_SAMPLES, MAX_SAMPLES
-from planning.motion import MotionStatus
 from planning.motion.request import MAX_PROBLEMS
+from planning.motion.task import TASK_STATUSES
 
 from ..fields import (
     MAX_DURATION_S,
@@ -276,7 +276,8 @@ class MotionAnswerIn(BaseModel):
 
     robot: Name
     joints: bounded_list(Name, MAX_DOF, min_length=1)  # type: ignore[valid-type]
-    status: Literal[tuple(s.value for s in MotionStatus)]  # type: ignore[valid-type]
+    # A task's answer too (its statuses include a move's): it plays as one motion.
+    status: Literal[TASK_STATUSES]  # type: ignore[valid-type]
     message: str = Field("", max_length=10_000)
     path: bounded_list(JointVector, MAX_MOTION_SAMPLES) = Field(  # type: ignore[valid-type]
         default_factory=list, description="Waypoints, rad / mm per joint")

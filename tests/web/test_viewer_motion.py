@@ -582,3 +582,20 @@ def test_a_failed_plan_from_the_viewer_says_why(api):
     v._poll_motion()
     assert "Not planned" in v.gui.motion.content and "the planner stopped" in v.gui.motion.content
     assert v.plan_nodes == []
+
+
+def test_a_task_answer_plays_as_one_motion(api):
+    """An answer of a task (``steps``), whose status may be a segment's (here ``collision``:
+    the line down meets a tray), is shown as any motion answer: the arm moves along its path."""
+    client = TestClient(api)
+    tray = {"type": "box", "id": "tray", "size": [300, 300, 40],
+            "pose": [[1, 0, 0, 1306], [0, 1, 0, -404], [0, 0, 1, 1100], [0, 0, 0, 1]]}
+    start = [-1.0, 0.3, -0.3, 0.0, 0.5, 0.0]
+    answer = client.post("/robots/glt_palletizer/motion", json={
+        "start": start, "scene": {"objects": [tray]}, "steps": [
+            {"type": "move", "goal": {"q": [0.3, 0.3, -0.3, 0.0, 0.5, 0.0]}},
+            {"type": "line", "target": [1306.1, -404.0, 1087.6], "orientation": "hold"}]}).json()
+    assert answer["status"] == "collision" and "steps" in answer, answer
+    r = client.post("/viewer/show", json={"motion": answer})
+    assert r.status_code == 200, r.text
+    np.testing.assert_allclose(api.state.viewer.q(), start, atol=1e-9)
