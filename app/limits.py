@@ -26,6 +26,7 @@ __all__ = [
     "ROUTE_BODY_CAPS",
     "DEFAULT_BODY_CAP",
     "FILE_ROUTES",
+    "TEXT_ROUTES",
     "LOOPBACK_HOSTS",
     "host_allow_list",
 ]
@@ -50,11 +51,19 @@ ROUTE_BODY_CAPS: dict[str, int] = {
     "/meshes": 40 * MiB,
     "/robots/{robot_id}/collision": 4 * MiB,
     "/robots/{robot_id}/motion": 4 * MiB,
+    # A drill plan file (IREDES, CSV, JSON) of up to 5,000 holes; its JSON for writing.
+    "/drill-plans/read": 8 * MiB,
+    "/drill-plans/write": 4 * MiB,
 }
 #: Body cap of every other route: single configurations, single poses, small objects.
 DEFAULT_BODY_CAP = 256 * 1024
 #: Routes that take ``multipart/form-data`` (files) besides JSON.
 FILE_ROUTES: frozenset[str] = frozenset({"/robots/import", "/meshes"})
+#: Routes that take a file as the body itself, by the content types they accept besides
+#: JSON (none a browser sends cross-site without asking first).
+TEXT_ROUTES: dict[str, frozenset[str]] = {
+    "/drill-plans/read": frozenset({"application/xml", "text/xml", "text/csv"}),
+}
 
 #: Names of this machine that a browser can only use for a service on this machine.
 LOOPBACK_HOSTS = ("localhost", "127.0.0.1", "::1")
@@ -149,9 +158,12 @@ class RequestGuard:
             json_ok = ctype == "application/json" or (
                 ctype.startswith("application/") and ctype.endswith("+json"))
             files_ok = template in FILE_ROUTES and ctype == "multipart/form-data"
-            if not (json_ok or files_ok):
+            text_ok = ctype in TEXT_ROUTES.get(template or "", ())
+            if not (json_ok or files_ok or text_ok):
+                wanted = "' or '".join(["application/json",
+                                        *sorted(TEXT_ROUTES.get(template or "", ()))])
                 await _answer(send, 415, ["header", "content-type"],
-                              f"send the body as 'application/json', got '{ctype or 'none'}'",
+                              f"send the body as '{wanted}', got '{ctype or 'none'}'",
                               "unsupported_media_type")
                 return
         if declared.isdigit() and int(declared) > cap:

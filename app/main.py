@@ -24,6 +24,7 @@ from .api.deps import require_api_key
 from .api.routes import (
     collision,
     cylinders,
+    drill_plans,
     exports,
     health,
     jobs,
@@ -191,6 +192,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.include_router(collision.router)
     api.include_router(motion.router)
     api.include_router(cylinders.router)
+    api.include_router(drill_plans.router)
     api.include_router(trajectories.router)
     api.include_router(jobs.router)
     api.include_router(exports.router)

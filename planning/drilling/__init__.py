@@ -6,7 +6,8 @@
 * ``space``: the joint space of a transfer between holes (drill kept perpendicular);
 * ``iapf``: the paper's improved artificial potential field (eqs. 8-13);
 * ``rrt``: the RRT-Connect baseline;
-* ``multiarm``: the whole-face planner and its 10 ms collision check.
+* ``multiarm``: the whole-face planner and its 10 ms collision check;
+* ``plans``: drill plans in and out (IREDES ``DRPPlan``, CSV, JSON): ``DrillPlan``, ``Hole``.
 
 Sequencing (the drilling order of one arm's holes) lives in ``planning.sequencing``.
 """
@@ -31,6 +32,14 @@ from .patterns import HolePattern as HolePattern
 from .patterns import face_pattern as face_pattern
 from .patterns import load_holes as load_holes
 from .patterns import parse_holes as parse_holes
+from .plans import DrillPlan as DrillPlan
+from .plans import Hole as Hole
+from .plans import PlanFormatError as PlanFormatError
+from .plans import read_csv as read_csv
+from .plans import read_iredes as read_iredes
+from .plans import read_json as read_json
+from .plans import to_csv as to_csv
+from .plans import write_iredes as write_iredes
 from .rrt import RRTConnect as RRTConnect
 from .space import ArmSpace as ArmSpace
 from .space import Obstacles as Obstacles
@@ -39,13 +48,16 @@ __all__ = [
     "Allocation",
     "ArmEnvelope",
     "ArmSpace",
+    "DrillPlan",
     "FacePattern",
     "FacePlan",
+    "Hole",
     "HolePattern",
     "IAPF",
     "MotionLimits",
     "MovePath",
     "Obstacles",
+    "PlanFormatError",
     "RRTConnect",
     "allocate_holes",
     "assign_holes",
@@ -57,4 +69,9 @@ __all__ = [
     "park_configuration",
     "plan_face",
     "plan_move",
+    "read_csv",
+    "read_iredes",
+    "read_json",
+    "to_csv",
+    "write_iredes",
 ]
