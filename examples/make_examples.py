@@ -153,7 +153,7 @@ def drill_face() -> str:
     buf = io.StringIO()
     out = csv.writer(buf, lineterminator="\n")
     out.writerow(["id", "collar_x", "collar_y", "collar_z", "toe_x", "toe_y", "toe_z",
-                  "type", "diameter"])
+                  "type", "diameter_mm"])
     for n, k in enumerate(keep, start=1):
         collar = np.round(face.holes[k], 1) + 0.0   # no -0.0
         toe = collar + [DEPTH, 0.0, 0.0]
@@ -162,12 +162,23 @@ def drill_face() -> str:
     return buf.getvalue()
 
 
+def drill_round() -> str:
+    """The face of ``drill_face`` as an IREDES drill plan (fixed creation date: the same
+    bytes every time)."""
+    from planning.drilling.plans import read_csv, write_iredes
+
+    plan = read_csv(drill_face(), plan_id="FACE-22", name="Sample face, 22 holes",
+                    frame_name="tunnel_jumbo")
+    return write_iredes(plan, created="2026-01-05T08:00:00")
+
+
 def main(out: Path = HERE) -> None:
-    """Write the four sample files into ``out``."""
+    """Write the five sample files into ``out``."""
     (out / "glt_meshed.zip").write_bytes(robot_archive())
     (out / "crate.stl").write_bytes(crate())
     (out / "cell_scene.json").write_text(json.dumps(scene(), indent=1) + "\n")
     (out / "drill_face.csv").write_text(drill_face())
+    (out / "drill_round.xml").write_bytes(drill_round().encode("utf-8"))
 
 
 if __name__ == "__main__":

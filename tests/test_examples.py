@@ -27,7 +27,8 @@ from fastapi.testclient import TestClient
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 README = ROOT / "README.md"
-SAMPLES = ("glt_meshed.zip", "crate.stl", "cell_scene.json", "drill_face.csv")
+SAMPLES = ("glt_meshed.zip", "crate.stl", "cell_scene.json", "drill_face.csv",
+           "drill_round.xml")
 
 #: Stands for the id of the job the README's tour submits, until the service has given one.
 JOB_PLACEHOLDER = "JOBID"
@@ -273,7 +274,22 @@ def test_sample_files_read_back():
         collar = np.array([float(r[f"collar_{a}"]) for a in "xyz"])
         toe = np.array([float(r[f"toe_{a}"]) for a in "xyz"])
         np.testing.assert_allclose(toe - collar, [3200.0, 0.0, 0.0])
-        assert r["type"] in ("contour", "lifter", "cut") and float(r["diameter"]) > 0
+        assert r["type"] in ("contour", "lifter", "cut") and float(r["diameter_mm"]) > 0
+    # The IREDES file is the same face: its checksum is the CRC32 of its bytes with 0 in
+    # its place (computed here), its holes the CSV's converted to metres.
+    import zlib
+
+    xml = (EXAMPLES / "drill_round.xml").read_bytes()
+    (chk,) = re.findall(rb"<IR:ChkSum>(\d+)</IR:ChkSum>", xml)
+    assert zlib.crc32(xml.replace(b"<IR:ChkSum>" + chk, b"<IR:ChkSum>0")) == int(chk)
+    holes = re.findall(rb"<Hole>.*?</Hole>", xml, re.S)
+    assert len(holes) == 22
+    for hole, r in zip(holes, rows, strict=True):
+        (start,) = re.findall(rb"<StartPoint>(.*?)</StartPoint>", hole, re.S)
+        xyz = [float(re.search(b"<IR:Point" + a + rb">([-\d.]+)<", start)[1])
+               for a in (b"X", b"Y", b"Z")]
+        np.testing.assert_allclose(np.array(xyz) * 1000.0,
+                                   [float(r[f"collar_{a}"]) for a in "xyz"], atol=1e-6)
 
 
 #: A file a curl command sends: ``-d @file``, ``--data-binary @file``, ``-F name=@file``.
