@@ -517,7 +517,7 @@ class _Solver:
         cap = 0.25 * self.opts.jump_threshold
         if worst > cap:
             dq *= cap / worst
-        return q + dq
+        return np.clip(q + dq, self.lower, self.upper)
 
     def solve(self, q: np.ndarray, T_goal: np.ndarray, limits: bool
               ) -> tuple[np.ndarray, bool, float, float]:
@@ -525,8 +525,9 @@ class _Solver:
         ``T_goal``, within the joint limits when ``limits`` (active joints at a limit are
         held there)."""
         o = self.opts
-        q = np.array(q, dtype=float)
         lo, hi = self.lower, self.upper
+        # Within the limits from the first state on (the best state may be the first).
+        q = np.clip(np.array(q, dtype=float), lo, hi) if limits else np.array(q, dtype=float)
         best = (q.copy(), math.inf, math.inf)
         ep = er = math.inf
         last = math.inf

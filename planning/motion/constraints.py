@@ -829,7 +829,11 @@ class _Space:
                 break
             move = self.dist(q, new)
             d_new = self.dist(new, target)
-            if move <= 1e-12 or move > JUMP_FACTOR * h or d_new >= d - 1e-3 * h:
+            # A jump: farther than JUMP_FACTOR steps, beyond the projection's correction of
+            # the candidate (up to one Gauss-Newton move: a state near the edge of its
+            # tolerance, e.g. the start, is pulled into the band in one step).
+            correction = min(self.dist(cand, new), PROJECT_MAX_MOVE)
+            if move <= 1e-12 or move > JUMP_FACTOR * h + correction or d_new >= d - 1e-3 * h:
                 break
             good, constraint = self.edge_ok(q, new)
             if not good:

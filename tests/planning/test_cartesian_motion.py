@@ -460,3 +460,27 @@ def test_a_time_limit_ends_the_segment_with_what_it_reached(ur5):
     same = plan_line(checker, Q0, T0)                  # no motion asked: done at once
     assert same.status is CartesianStatus.OK and same.fraction == 1.0
     assert np.abs(same.path - Q0).max() < 1e-6
+
+
+def test_the_step_solver_never_answers_a_state_past_a_limit():
+    """A step's solve within the limits starts from the predicted state moved in the null
+    space, which may lie a little past a limit; when that state already reaches the pose,
+    the answer is still within the limits (a benchmark found a 7-joint arm's line 0.0008 rad
+    past a wrist limit). The 9-joint arm: a start 0.001 rad past joint 3's upper limit whose
+    own pose is the goal."""
+    from kinematics.fk import fk
+    from planning.motion import cartesian
+
+    model = builtin_model("hyper_redundant_9dof")
+    checker = MotionChecker(RobotCollisionModel.from_model(model, link_radius=30.0),
+                            self_collision=False)
+    opts = cartesian._options(5.0, 0.05, 0.3, 0.1, 1e-3, 0.01, 0.1)
+    solver = cartesian._Solver(model, checker.lower, checker.upper, checker.weights, opts)
+    q = np.array([0.6, -0.53, 1.95, 1.15, 1.11, 0.54, 0.1, -0.54, -0.81])
+    q[2] = checker.upper[2] + 1e-3
+    q_new, ok, _, _ = solver.solve(q, fk(model, q), limits=True)
+    assert np.all(q_new <= checker.upper) and np.all(q_new >= checker.lower)
+    assert ok  # the pose is reached from within the limits
+    # The null-space motion off the limits keeps within them too.
+    moved = solver.null_step(q)
+    assert np.all(moved <= checker.upper) and np.all(moved >= checker.lower)

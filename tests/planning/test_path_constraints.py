@@ -364,3 +364,32 @@ def test_the_time_limit_and_progress_end_a_search(ur5):
     assert len(seen) == 3 and all(0.0 <= f <= 1.0 for f in seen)
     # The checker is left as it was found, with no deadline.
     assert checker.deadline is None
+
+
+@pytest.mark.slow
+def test_a_start_near_the_edge_of_its_tolerance_leaves_it():
+    """The palletizer's tool axis within 0.6 rad of straight down, from a start tilted
+    0.39 rad (near the edge) to a goal tilted 0.51 rad: the first projected step pulls the
+    state well into the band, a move longer than a step that is not a jump. (A benchmark
+    found this timing out with the start alone in its tree.)"""
+    from kinematics.fk import fk
+    from kinematics.library import builtin_model
+
+    model = builtin_model("glt_palletizer")
+    checker = MotionChecker(RobotCollisionModel.from_model(model), None)
+    start = [-2.95009234, -0.39324337, -2.65702739, -2.85734347, 1.3932949, -8.42825994]
+    goal = [-1.25214038, -0.21324955, -2.96350781, -2.66869616, 1.33142943, -4.52725675]
+
+    def tilts(Q):
+        z = fk(model, np.atleast_2d(Q))[:, :3, 2]
+        return np.arccos(np.clip(-z[:, 2], -1.0, 1.0))
+
+    np.testing.assert_allclose(tilts([start, goal]), [0.390, 0.510], atol=0.005)
+    res = plan_constrained(checker, start, goal, {"type": "axis", "direction": [0, 0, -1],
+                                                  "axis": [0, 0, 1], "tolerance": 0.6},
+                           time_limit=8.0, seed=0, simplify=False)
+    assert res.status.value == "ok", res.message
+    P = np.asarray(res.path)
+    D = np.concatenate([a + (b - a) * np.linspace(0, 1, 21)[:-1, None]
+                        for a, b in zip(P[:-1], P[1:])] + [P[-1:]])
+    assert tilts(D).max() <= 0.6
