@@ -26,9 +26,13 @@ from . import drilling_kinds
 from . import motion_kinds
 from . import path_kinds
 from . import tracking_kinds
+from . import round_kinds
+from . import pallet_kinds
+from . import pile_kinds
 from .kinds import KINDS, JobKind, get_kind
 
 __all__ = ["KINDS", "JobKind", "get_kind", "KIND_MODULES"]
 
 #: The modules that define kinds.
-KIND_MODULES = (kinds, model_kinds, path_kinds, tracking_kinds, drilling_kinds, motion_kinds)
+KIND_MODULES = (kinds, model_kinds, path_kinds, tracking_kinds, drilling_kinds, motion_kinds,
+                round_kinds, pallet_kinds, pile_kinds)

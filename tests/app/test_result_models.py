@@ -20,8 +20,20 @@ import pytest
 from pydantic import BaseModel
 
 from app.api.routes.motion import MotionAnswer, MotionTaskAnswer
-from app.jobs import drilling_kinds, motion_kinds, path_kinds, tracking_kinds
+from app.jobs import (
+    drilling_kinds,
+    motion_kinds,
+    pallet_kinds,
+    path_kinds,
+    pile_kinds,
+    round_kinds,
+    tracking_kinds,
+)
 from app.jobs.catalog import KINDS
+from planning.cycles.pallet import BoxPlan, PalletResult
+from planning.cycles.piles import CoverResult, PileOutcome, PilesPlan
+from planning.cycles.round import BoomPlan, HolePlan
+from planning.cycles.round import RoundResult as RoundPlan
 from planning.drilling.multiarm import ArmPlan, FacePlan
 from planning.motion import MotionResult, MotionStatus
 from planning.motion.task import StepResult, TaskResult
@@ -121,6 +133,44 @@ PAIRS: dict[str, list[Pair]] = {
                                              "optim"}),
                       # the best run's, of the library's one per gain candidate
                       reduced=frozenset({"saturated_steps", "q"}))],
+    "pallet": [
+        Pair(pallet_kinds.PalletJobResult, (PalletResult,),
+             service=frozenset({"robot", "joints", "per_layer", "placed", "total",
+                                "pallet_size", "pallet_pose", "box_size"}),
+             # the robot's first configuration and the grasp stay in the library
+             unpublished=frozenset({"start", "T_tool_box"}),
+             # the pattern by its name
+             reduced=frozenset({"pattern"})),
+        Pair(pallet_kinds.PalletBoxOut, (BoxPlan,),
+             service=frozenset({"carry_states", "return_states"}),
+             # the tasks themselves (their paths) and the place (as position and yaw)
+             unpublished=frozenset({"carry", "back", "place"})),
+    ],
+    "round": [
+        Pair(round_kinds.RoundResult, (RoundPlan,),
+             service=frozenset({"rig", "ratio", "priority"}), unpublished=frozenset({"stats"})),
+        Pair(round_kinds.RoundBoom, (BoomPlan,),
+             service=frozenset({"t", "q", "phases", "end_s"}),
+             unpublished=frozenset({"name", "timeline", "park"})),
+        Pair(round_kinds.RoundHolePlan, (HolePlan,), unpublished=frozenset({"q_collar"})),
+    ],
+    "piles": [
+        Pair(pile_kinds.PilesResult, (PilesPlan,),
+             service=frozenset({"robot", "piles_total", "piles_reached", "unreached",
+                                "cycle_time_s", "per_pile_s", "max_axis_error",
+                                "max_position_error"}),
+             # the plan itself, the candidates' table and the times per set-up (published
+             # in setups); total_s is cycle_time_s
+             unpublished=frozenset({"plan", "candidates", "table", "setup_times",
+                                    "total_s"})),
+        Pair(pile_kinds.PileOut, (PileOutcome,), service=frozenset({"id"}),
+             # the plan's index (published as id), the lift (as long as lower_s), the
+             # reason of an unreached pile (published in unreached)
+             unpublished=frozenset({"index", "lift_s", "reason"})),
+        Pair(pile_kinds.CoverOut, (CoverResult,), service=frozenset({"setups", "candidates"}),
+             # the chosen candidates (published in setups)
+             unpublished=frozenset({"chosen"})),
+    ],
     # Kinds whose result is no planning result: diagnostics, and kinematics' own.
     "sleep": [], "echo": [], "workspace": [], "calibrate": [], "ik_train": [],
     # ---- synchronous planning endpoints with a response model ----
@@ -143,7 +193,8 @@ def test_every_kind_is_paired_or_said_to_have_no_planning_result():
 
 #: Planning endpoints that publish no response model (their answers are built as dicts).
 UNTYPED = {"GET /robots/{robot_id}/collision", "POST /robots/{robot_id}/collision",
-           "POST /trajectories", "POST /trajectories/plot", "POST /trajectories/cartesian"}
+           "POST /trajectories", "POST /trajectories/plot", "POST /trajectories/cartesian",
+           "POST /robots/{robot_id}/motion/replay.html"}  # an HTML page
 PLANNING_TAGS = {"motion", "collision", "trajectories"}
 
 

@@ -94,6 +94,16 @@ CASES = [
                           "goal": {"q": [1, 0.3, -0.3, 0, 0.5, 0]}, "time_limit": 2}),
     ("motion_batch", "motion", {"robot": "glt_palletizer", "time_limit": 2, "problems": [
         {"start": [0, 0, 0, 0, 0.5, 0], "goal": {"q": [1, 0.3, -0.3, 0, 0.5, 0]}}]}),
+    ("pallet", "pallet", {"box": {"size": [400, 300, 250]}, "count": 1, "time_limit": 5,
+                          "pick": [[1, 0, 0, 0], [0, 1, 0, -1100], [0, 0, 1, 825],
+                                   [0, 0, 0, 1]]}),
+    ("piles", "piles", {"plan": [{"id": "A", "x": 1600, "y": 0, "z": 0},
+                                 {"id": "far", "x": 9000, "y": 0, "z": 0}],
+                        "setups": {"positions": [[0, 0, 0]]}}),
+    ("round", "round", {"holes": [{"id": "M1", "collar": [9000, 0, 2500],
+                                   "toe": [10000, 0, 2500]}],
+                        "booms": ["middle"], "collaring_s": 1, "retract_s": 5,
+                        "penetration_rate_m_min": 6, "output_dt": 5.0}),
 ]
 
 
@@ -162,7 +172,7 @@ def test_kinds_publish_params_and_result_schemas(published):
     for name, kind in published.items():
         assert kind["params"] == kind["params_schema"] == KINDS[name].params.model_json_schema()
         assert kind["result_schema"]["title"] == KINDS[name].result.__name__
-        assert kind["plot"] is (name == "tracking")
+        assert kind["plot"] is (name in {"tracking", "pallet", "piles", "round"})
     assert "samples" in published["workspace"]["params_schema"]["properties"]
     assert "x_desired" in published["tracking"]["result_schema"]["required"]
 
