@@ -43,6 +43,20 @@ and the path verified like ours. OMPL spends its time in python-fcl, so it runs 
 ``--ompl-problems`` (5) valid problems of each family (``--skip-ompl`` for none); the ratio
 of median times OMPL / ours is taken on the problems both solved.
 
+VAMP in the same run (``benchmarks/vamp_reference.py``; on when ``vamp`` imports,
+``--skip-vamp`` for none; install it by hand, benchmarks/README.md): every problem planned by
+VAMP's RRT-Connect + simplification as its ``scripts/evaluate_mbm.py`` does, the scene
+converted as VAMP's own scripts convert a MoveIt scene (like evaluate_mbm.py, a problem whose
+start or goal collides in VAMP's model is not planned; samples capped at
+``--vamp-max-samples``, 50,000, see vamp_reference.MAX_SAMPLES); VAMP's times (its nanoseconds
+and the wall clock of each call), its simplified path's length, and the path verified like ours
+(ends and limits within 1e-6 rad: VAMP is float32); a path that fails gets the deepest fcl
+contact along it. Its joint order, limits and end-effector frame are checked against the
+URDF's, and its collision check alone is timed (``validate``, ``validate_motion``). Printed in
+a section of its own: ours, VAMP measured here and OMPL side by side, per robot, with the
+ratios ours / VAMP of median time and length on the problems both solved, and the machine's
+load.
+
 Printed per family and overall: problems, valid, direct, solved by ours, verified, median
 and 95th-percentile planning time (over the problems ours solved), median simplified length
 (over the verified paths); the same for OMPL; VAMP's published figures (Thomason, Kingston,
@@ -56,10 +70,10 @@ shared by everyone: timings are noisy.
 
 Run: ``.venv/bin/python benchmarks/bench_motion.py [--robot panda|ur5|both] [--families box
 cage] [--limit 20] [--problems-per-family 20] [--ompl-problems 5 | --skip-ompl]
-[--time-limit 2] [--retry-time 20] [--ur5-folder DIR] [--json out.json]`` (needs
-python-fcl, pyyaml, trimesh and ompl). The collision models take about 10 s (Panda) and
-30 s (UR5) to build; both robots with the defaults take about 10 minutes on 2 cores, most
-of it OMPL. A report: the exit status is 0 in any case.
+[--time-limit 2] [--retry-time 20] [--ur5-folder DIR] [--skip-vamp] [--json out.json]``
+(needs python-fcl, pyyaml, trimesh and ompl; vamp optional). The collision models take
+about 10 s (Panda) and 30 s (UR5) to build; both robots with the defaults take about 10
+minutes on 2 cores, most of it OMPL. A report: the exit status is 0 in any case.
 """
 
 from __future__ import annotations
@@ -67,6 +81,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import tempfile
 import time
@@ -79,6 +94,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import mbm_problems as mbm  # noqa: E402
+import vamp_reference as vref  # noqa: E402
 from bench_collision import Reference, mbm_scene  # noqa: E402
 
 from planning.collision import CollisionScene, RobotCollisionModel  # noqa: E402
@@ -87,6 +103,8 @@ from planning.collision import CollisionScene, RobotCollisionModel  # noqa: E402
 VAMP = {"panda": {"solved": "699/700 solved", "median_us": 99, "length": 4.90},
         "ur5": {"solved": "608/700 valid, all solved", "median_us": 112, "length": 6.55}}
 FINGER_M = 0.065
+#: VAMP's collision check alone, per robot (``vamp_reference.check_timing``).
+VAMP_CHECK: dict[str, dict] = {}
 
 
 # ---- the exact check along paths ------------------------------------------------------------
@@ -248,6 +266,20 @@ class Row:
     ompl_why: str = ""
     retry_status: str = ""
     retry_s: float | None = None
+    vamp: bool = False
+    vamp_solved: bool | None = None
+    vamp_plan_ns: int | None = None
+    vamp_simplify_ns: int | None = None
+    vamp_plan_wall_s: float | None = None
+    vamp_simplify_wall_s: float | None = None
+    vamp_iterations: int | None = None
+    vamp_tree: int | None = None
+    vamp_ends_valid: bool | None = None     # VAMP's own check of start and goal
+    vamp_waypoints: int | None = None
+    vamp_length: float | None = None        # of every solved path, verified or not
+    vamp_verified: bool | None = None
+    vamp_why: str = ""
+    vamp_depth_mm: float | None = None      # deepest contact of a path that failed
 
     @property
     def name(self) -> str:
@@ -260,6 +292,17 @@ class Row:
     @property
     def ompl_s(self) -> float | None:
         return None if self.ompl_plan_s is None else self.ompl_plan_s + self.ompl_simplify_s
+
+    @property
+    def vamp_s(self) -> float | None:
+        """VAMP's own planning + simplification time (its nanoseconds), s."""
+        return None if self.vamp_plan_ns is None \
+            else (self.vamp_plan_ns + self.vamp_simplify_ns) * 1e-9
+
+    @property
+    def vamp_wall_s(self) -> float | None:
+        return None if self.vamp_plan_wall_s is None \
+            else self.vamp_plan_wall_s + self.vamp_simplify_wall_s
 
 
 def own_check(checker, path: np.ndarray, step: float) -> str:
@@ -302,7 +345,33 @@ def problems_for(name: str, robot, panda, args, workdir: Path) -> list[mbm.Probl
     return mbm.load_problems(folder, "ur5", joint_names, args.families, args.limit)
 
 
-def run_robot(name: str, args, motion, panda, workdir: Path) -> list[Row]:
+def run_vamp(vr, row: Row, robot, ref: Reference, ids: list[str], data: dict, p, args):
+    """VAMP on one problem (scene converted as VAMP's own scripts do), its path verified
+    by the same exact check at the same step; returns VAMP's environment and its simplified
+    path (None if not planned or unsolved)."""
+    env = vref.scene_env(vr.vamp, data, p.family)
+    o = vref.plan(vr, env, p.start, p.goal)
+    row.vamp = o["planned"]
+    row.vamp_ends_valid = o["start_valid"] and o["goal_valid"]
+    if not o["planned"]:
+        return env, None
+    row.vamp_solved, row.vamp_plan_ns = o["solved"], o["plan_ns"]
+    row.vamp_simplify_ns, row.vamp_plan_wall_s = o["simplify_ns"], o["plan_wall_s"]
+    row.vamp_simplify_wall_s = o["simplify_wall_s"]
+    row.vamp_iterations, row.vamp_tree = o["iterations"], o["tree"]
+    if o["solved"]:
+        path = o["path"]
+        row.vamp_waypoints, row.vamp_length = len(path), path_length(path)
+        row.vamp_why = verify(robot, ref, ids, path, p.start, p.goal, args.step,
+                              tol=vref.F32_TOL)
+        row.vamp_verified = row.vamp_why == ""
+        if not row.vamp_verified and np.all(np.isfinite(path)):
+            row.vamp_depth_mm = vref.contact_depth_mm(ref, robot, path, args.step,
+                                                      segment_states)
+    return env, o["path"]
+
+
+def run_robot(name: str, args, motion, panda, workdir: Path, vamp=None) -> list[Row]:
     print(f"\n== {name} ==")
     t = time.perf_counter()
     robot = panda if name == "panda" else mbm.import_named(name)
@@ -320,6 +389,12 @@ def run_robot(name: str, args, motion, panda, workdir: Path) -> list[Row]:
     rows: list[Row] = []
     ompl_left = {}
     warmed = False
+    vr = None
+    if vamp is not None:
+        vr = vref.VampRobot.make(vamp, name, args.vamp_max_samples)
+        for line in vref.model_report(vr, robot):
+            print("  " + line)
+        VAMP_CHECK.pop(name, None)
     for p in problems:
         row = Row(name, p.family, p.index)
         rows.append(row)
@@ -366,6 +441,13 @@ def run_robot(name: str, args, motion, panda, workdir: Path) -> list[Row]:
                 again = plan_motion(checker, p.start, p.goal, time_limit=args.retry_time,
                                     seed=seed, trajectory=False)
                 row.retry_status, row.retry_s = str(again.status), again.planning_time_s
+        if vr is not None:
+            if not rows[:-1]:                         # first-use costs, untimed
+                vref.plan(vr, vref.scene_env(vamp, data, p.family), p.start, p.goal)
+            env, vpath = run_vamp(vr, row, robot, ref, ids, data, p, args)
+            if name not in VAMP_CHECK and row.valid and vpath is not None and len(vpath) > 1 \
+                    and np.linalg.norm(vpath[1] - vpath[0]) < 8.0:
+                VAMP_CHECK[name] = vref.check_timing(vr, env, vpath[0], vpath[1])
         if row.valid and not args.skip_ompl \
                 and ompl_left.setdefault(p.family, args.ompl_problems) > 0:
             ompl_left[p.family] -= 1
@@ -403,6 +485,15 @@ def progress(r: Row) -> str:
             parts.append(f"({r.message})")
         if r.retry_status:
             parts.append(f"[given more time: {r.retry_status} in {fmt(r.retry_s, 1, 1)} s]")
+    if r.vamp_ends_valid is False:
+        parts.append("| vamp not run: start or goal collides in VAMP's model")
+    if r.vamp:
+        parts.append(f"| vamp {'ok' if r.vamp_solved else 'unsolved'} "
+                     f"{fmt(r.vamp_plan_ns, 1e-3, 0)} + {fmt(r.vamp_simplify_ns, 1e-3, 0)} us")
+        if r.vamp_solved:
+            parts.append(f"length {r.vamp_length:.3f}, "
+                         + ("verified" if r.vamp_verified else
+                            f"NOT FREE ({fmt(r.vamp_depth_mm, 1, 1)} mm deep): {r.vamp_why}"))
     if r.ompl:
         parts.append(f"| ompl {'ok' if r.ompl_solved else 'unsolved'} {ms(r.ompl_plan_s)} + "
                      f"{ms(r.ompl_simplify_s)} ms")
@@ -547,6 +638,103 @@ def print_tables(rows: list[Row], args) -> None:
                           for r in ompl_fail))
 
 
+def print_vamp(rows: list[Row], args, load: tuple[float, float]) -> None:
+    """The ``--vamp`` section: ours, VAMP measured in this run and OMPL, side by side."""
+    robots = [r for r in ("panda", "ur5")
+              if any(x.robot == r and x.vamp_ends_valid is not None for x in rows)]
+    print("\n### Ours, VAMP (measured in this run) and OMPL on the same problems\n")
+    print("| robot | planner | valid problems run | solved | exact-free (verified / "
+          "solved) | median ms | p95 ms | median length (rad) |")
+    print("|" + "---|" * 8)
+    ratios = []
+    for robot in robots:
+        valid = [r for r in rows if r.robot == robot and r.valid]
+        ours = [r for r in valid if r.solved]
+        vs = [r for r in valid if r.vamp_solved]
+        om = [r for r in valid if r.ompl]
+        oms = [r for r in om if r.ompl_solved]
+        vlen_ok = median(r.vamp_length for r in vs if r.vamp_verified)
+        print(f"| {robot} | ours | {len(valid)} | {len(ours)} | "
+              f"{frac(sum(bool(r.verified) for r in ours), len(ours))} | "
+              f"{fmt(median(r.time_s for r in ours), 1e3, 3)} | "
+              f"{fmt(p95(r.time_s for r in ours), 1e3, 3)} | "
+              f"{fmt(median(r.length for r in ours if r.verified))} |")
+        print(f"| {robot} | VAMP, its own ns | {sum(r.vamp for r in valid)} (its model: "
+              f"{sum(not r.vamp_ends_valid for r in valid)} with colliding ends) | {len(vs)} | "
+              f"{frac(sum(bool(r.vamp_verified) for r in vs), len(vs))} | "
+              f"{fmt(median(r.vamp_s for r in vs), 1e3, 3)} | "
+              f"{fmt(p95(r.vamp_s for r in vs), 1e3, 3)} | "
+              f"{fmt(median(r.vamp_length for r in vs))} (free ones: {fmt(vlen_ok)}) |")
+        print(f"| {robot} | VAMP, wall clock | | | | "
+              f"{fmt(median(r.vamp_wall_s for r in vs), 1e3, 3)} | "
+              f"{fmt(p95(r.vamp_wall_s for r in vs), 1e3, 3)} | |")
+        print(f"| {robot} | OMPL RRT-Connect | {len(om)} | {len(oms)} | "
+              f"{frac(sum(bool(r.ompl_verified) for r in oms), len(oms))} | "
+              f"{fmt(median(r.ompl_s for r in oms), 1e3, 1)} | "
+              f"{fmt(p95(r.ompl_s for r in oms), 1e3, 1)} | "
+              f"{fmt(median(r.ompl_length for r in oms if r.ompl_verified))} |")
+        both = [r for r in valid if r.solved and r.vamp_solved]
+        blen = [r for r in both if r.verified]
+        t_ours, t_v = median(r.time_s for r in both), median(r.vamp_s for r in both)
+        t_w = median(r.vamp_wall_s for r in both)
+        l_ours, l_v = median(r.length for r in blen), median(r.vamp_length for r in blen)
+        ratios.append(
+            f"  {robot}: on the {len(both)} valid problems both solved: ours / VAMP median "
+            f"time = {fmt(t_ours, 1e3, 3)} / {fmt(t_v, 1e3, 4)} ms = "
+            f"{fmt(t_ours / t_v if t_ours and t_v else None, 1, 0)}x (against VAMP's wall "
+            f"clock {fmt(t_w, 1e3, 4)} ms: "
+            f"{fmt(t_ours / t_w if t_ours and t_w else None, 1, 0)}x); ours / VAMP median "
+            f"length = {fmt(l_ours)} / {fmt(l_v)} rad = "
+            f"{fmt(l_ours / l_v if l_ours and l_v else None, 1, 3)} (on the {len(blen)} of "
+            f"them ours verified; VAMP's paths counted whether free or not)")
+    print("\nRatios:")
+    print("\n".join(ratios))
+    print("\nVAMP's simplified paths that are not free on the meshes, by the deepest fcl "
+          "contact along the path (states every <= "
+          f"{args.step:g} rad):")
+    for robot in robots:
+        bad = [r for r in rows if r.robot == robot and r.valid and r.vamp_solved
+               and not r.vamp_verified]
+        d = [r.vamp_depth_mm for r in bad]
+        n5 = sum(x is not None and x < 5 for x in d)
+        n10 = sum(x is not None and 5 <= x < 10 for x in d)
+        nbig = sum(x is not None and x >= 10 for x in d)
+        deepest = max((x for x in d if x is not None), default=None)
+        print(f"  {robot}: {len(bad)} not free: {n5} < 5 mm, {n10} 5-10 mm, {nbig} >= 10 mm "
+              f"(deepest {fmt(deepest, 1, 1)} mm); the touching pairs, first failure each: "
+              + "; ".join(f"{r.name}: {r.vamp_why.split(': ', 1)[-1]}" for r in bad[:8])
+              + (" ..." if len(bad) > 8 else ""))
+        valid = [r for r in rows if r.robot == robot and r.vamp_ends_valid is not None]
+        a = sum(r.valid and not r.vamp_ends_valid for r in valid)
+        b = sum(not r.valid and bool(r.vamp_ends_valid) for r in valid)
+        print(f"  {robot}: VAMP's own check of the ends disagrees with the exact one on "
+              f"{a + b} problems ({a} free on the meshes but colliding for VAMP, {b} the "
+              "other way round)")
+    print("\nVAMP's collision check alone (its Python binding, mean of 20000 calls, call "
+          "overhead included):")
+    for robot in robots:
+        c = VAMP_CHECK.get(robot)
+        if c:
+            print(f"  {robot}: validate(q), one configuration: {c['single_us']:.2f} us; "
+                  f"validate_motion over a segment < 8 rad (one SIMD block of 8 "
+                  f"configurations{'' if c['motion_free'] else ', not free'}): "
+                  f"{c['motion_us']:.2f} us = {c['motion_per_config_us']:.2f} us per "
+                  "configuration (the API has no batch call)")
+    cores = os.cpu_count() or 1
+    print(f"\nVAMP {vref.version()} (RRT-Connect + simplify, Halton sampler, "
+          "evaluate_mbm.py's settings), float32 paths verified with 1e-6 rad tolerance on "
+          "ends and limits. Ours: time limit "
+          f"{args.time_limit:g} s; OMPL on the first {args.ompl_problems} valid problems "
+          "of each family. Median and p95 over the solved problems; lengths = joint-space "
+          f"Euclidean length of the simplified path. Load average {load[0]:.1f} at the start "
+          f"and {load[1]:.1f} at the end on {cores} cores"
+          + (": timings on a loaded machine, noisy." if max(load) > 0.5 * cores else "."))
+
+
+def frac(k: int, n: int) -> str:
+    return f"{k}/{n} ({100 * k / n:.0f} %)" if n else "-"
+
+
 def verdict(ok: bool) -> str:
     return "PASS" if ok else "FAIL"
 
@@ -575,8 +763,19 @@ def main() -> None:
     parser.add_argument("--ompl-time", type=float, default=2.0)
     parser.add_argument("--ompl-seed", type=int, default=4242)
     parser.add_argument("--skip-ompl", action="store_true")
+    parser.add_argument("--vamp", action="store_true",
+                        help="VAMP in the same run (the default when vamp imports)")
+    parser.add_argument("--skip-vamp", action="store_true", help="no VAMP run")
+    parser.add_argument("--vamp-max-samples", type=int, default=vref.MAX_SAMPLES,
+                        help="cap on VAMP's samples and iterations (0: VAMP's 10^6)")
     parser.add_argument("--json", type=Path, default=None, help="write every row here")
     args = parser.parse_args()
+    load0 = os.getloadavg()[0]
+    vamp = None
+    if not args.skip_vamp:
+        vamp, why = vref.load_vamp()
+        if vamp is None:
+            print(f"VAMP: {why}; only its published figures are printed")
     if not args.skip_ompl:
         from ompl import util as ou
 
@@ -588,8 +787,10 @@ def main() -> None:
     rows: list[Row] = []
     with tempfile.TemporaryDirectory(prefix="mbm-") as tmp:
         for name in robots:
-            rows += run_robot(name, args, motion, panda, Path(tmp))
+            rows += run_robot(name, args, motion, panda, Path(tmp), vamp)
     print_tables(rows, args)
+    if vamp is not None:
+        print_vamp(rows, args, (load0, os.getloadavg()[0]))
     if args.json:
         args.json.write_text(json.dumps([asdict(r) for r in rows], indent=1))
         print(f"rows written to {args.json}")
