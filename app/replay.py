@@ -457,6 +457,26 @@ def _hole_points(replay: Replay, result: Mapping[str, Any]) -> None:
             _add_points(replay, f"{arm}/holes", holes, 40.0, ARM_COLORS.get(arm, PATH_COLOR))
 
 
+def _round_holes(replay: Replay, params: Mapping[str, Any], result: Mapping[str, Any]) -> None:
+    """A round's holes given as a list (collar to toe, rig frame), coloured by boom."""
+    holes = params.get("holes") if params.get("rig_pose") is None else None
+    if not isinstance(holes, list):
+        replay.notes.append("the round's holes are not drawn (an IREDES plan or a rig_pose)")
+        return
+    boom_of = {h.get("id"): h.get("boom") for h in result.get("holes") or []
+               if isinstance(h, Mapping)}
+    by_boom: dict[str, list] = {}
+    for h in holes:
+        if isinstance(h, Mapping) and h.get("collar") is not None and h.get("toe") is not None:
+            by_boom.setdefault(str(boom_of.get(h.get("id"), "unreached")), []).append(
+                (h["collar"], h["toe"]))
+    for boom, pairs in by_boom.items():
+        P = np.asarray(pairs, dtype=np.float64).reshape(-1, 3)
+        replay.lines.append({"name": f"{boom}/holes", "segments": True,
+                             "color": list(ARM_COLORS.get(boom, PATH_COLOR)),
+                             "pts": np.round(P, MM_DECIMALS).reshape(-1)})
+
+
 # ---- the page --------------------------------------------------------------------------------
 def _frames(t: np.ndarray) -> np.ndarray:
     """Indices of the samples kept: all, or every k-th and the last (``MAX_FRAMES``)."""
@@ -487,12 +507,13 @@ def build_replay(job_id: str, kind: str, params: Mapping[str, Any], result: Mapp
     chosen, several = select(kind, tracks, "json", {"arm": arm, "problem": problem})
     if several and tracks.selector == "problem":
         chosen = chosen[:1]
-    first = chosen[0][1]
+    # The frames: the longest track's times (a round's booms end at different times).
+    first = max((track for _, track in chosen), key=lambda track: track.t[-1] - track.t[0])
     keep = _frames(first.t)
     t = first.t[keep] - first.t[0]
     replay = Replay(job_id, kind, t)
     rig = None
-    if kind == "multiarm":
+    if kind in ("multiarm", "round"):
         rig = builtin_rig(result.get("rig") or params.get("rig", "tunnel_jumbo"))
     for label, track in chosen:
         q = _at(track, first.t[keep])
@@ -512,6 +533,8 @@ def build_replay(job_id: str, kind: str, params: Mapping[str, Any], result: Mapp
         _path_scene(replay, params)
     elif kind == "multiarm":
         _hole_points(replay, result)
+    elif kind == "round":
+        _round_holes(replay, params, result)
     elif kind == "tracking" and result.get("x_desired"):
         desired = np.asarray(result["x_desired"], dtype=np.float64).reshape(-1, 3)
         replay.lines.append({"name": "desired", "color": list(DESIRED_COLOR),

@@ -215,11 +215,30 @@ def _multiarm(params: Mapping[str, Any], result: Mapping[str, Any], lookup: Look
     return Tracks("arm", items)
 
 
+def _round(params: Mapping[str, Any], result: Mapping[str, Any], lookup: Lookup) -> Tracks:
+    """``round``: each boom's own timed joints ``booms.<boom>.t``, ``.q``, the boom's model
+    from the built-in rig."""
+    rig_id = result.get("rig") or params.get("rig", "tunnel_jumbo")
+    try:
+        rig = builtin_rig(rig_id)
+    except KeyError:
+        raise ExportError(["path", "job_id"], f"unknown rig '{rig_id}'") from None
+    items: dict[Any, Track | str] = {}
+    for boom, data in (result.get("booms") or {}).items():
+        model = rig.arms.get(boom)
+        if model is None:
+            raise ExportError(["path", "job_id"], f"rig '{rig_id}' has no boom '{boom}'")
+        items[boom] = _sampled({"t": data.get("t"), "q": data.get("q")}, model, None,
+                               model.id, lookup, f"booms.{boom}")
+    return Tracks("arm", items)
+
+
 #: The kinds whose results carry timed joint samples, and how to read them.
 EXTRACTORS: dict[str, Extractor] = {
     "motion": _motion,
     "multiarm": _multiarm,
     "path": _path,
+    "round": _round,
     "tracking": _tracking,
 }
 
@@ -227,7 +246,7 @@ EXTRACTORS: dict[str, Extractor] = {
 def trajectory_kinds() -> str:
     """The kinds with a trajectory, in words (for error messages)."""
     return ("motion (a solved problem, each of a batch), path (planned for a robot), "
-            "multiarm (one per arm) and tracking")
+            "multiarm and round (one per arm or boom) and tracking")
 
 
 def extract(kind: str, params: Mapping[str, Any], result: Mapping[str, Any],

@@ -427,3 +427,58 @@ def test_a_posted_answer_that_does_not_fit_is_422_naming_the_field(client):
                404) == ["path", "scene_id"]
     assert client.post("/robots/no-such-robot/motion/replay.html",
                        json={"answer": {"trajectory": {"t": t, "q": q}}}).status_code == 404
+
+
+# ---- a drilling round: each boom on its own times ---------------------------------------------
+def _round_result() -> tuple[dict, dict]:
+    """Two booms of the jumbo, the left ending at 4 s, the middle at 6 s (own samples)."""
+    rig = builtin_rig("tunnel_jumbo")
+    booms = {}
+    for name, end in (("left", 4.0), ("middle", 6.0)):
+        model = rig.arms[name]
+        t = np.linspace(0.0, end, int(end) + 1)
+        lo, hi = np.asarray(model.lower), np.asarray(model.upper)
+        a, b = lo + 0.3 * (hi - lo), lo + 0.6 * (hi - lo)
+        q = a + np.outer(t / end, b - a)
+        booms[name] = {"holes": [f"{name[0].upper()}1"], "priority": 0, "t": t.tolist(),
+                       "q": q.tolist(), "phases": [{"kind": "transfer", "start_s": 0.0,
+                                                    "end_s": end, "hole": None}],
+                       "wait_s": 0.0, "end_s": end}
+    holes = [{"id": "L1", "boom": "left", "start_s": 1.0, "end_s": 3.0, "depth_mm": 1000.0,
+              "drill_s": 2.0},
+             {"id": "M1", "boom": "middle", "start_s": 1.0, "end_s": 5.0, "depth_mm": 1000.0,
+              "drill_s": 4.0}]
+    result = {"rig": "tunnel_jumbo", "booms": booms, "holes": holes, "unreachable": [],
+              "cycle_time_s": 6.0, "lower_bound_s": 3.0, "ratio": 2.0,
+              "min_boom_clearance_mm": 500.0, "clearance_pair": "left-middle",
+              "clearance_t_s": 2.0, "checked_instants": 600, "max_step_mm": 4.0,
+              "priority": ["middle", "left"], "notes": [], "planning_time_s": 1.0}
+    params = {"holes": [{"id": "L1", "collar": [9000, 2000, 1500], "toe": [10000, 2000, 1500]},
+                        {"id": "M1", "collar": [9000, 0, 2500], "toe": [10000, 0, 2500]}]}
+    return params, result
+
+
+def test_a_round_plays_every_boom_on_its_own_times_and_exports_per_boom(client):
+    params, result = _round_result()
+    _store(client, "rnd", "round", params, result)
+    rig = builtin_rig("tunnel_jumbo")
+    _, data = _page(client, "/jobs/rnd/replay.html")
+    assert data["robots"] == ["left", "middle"]
+    np.testing.assert_allclose(data["t"], np.linspace(0.0, 6.0, 7), atol=1e-6)  # the longer
+    for name in ("left", "middle"):
+        boom = result["booms"][name]
+        for k, t in enumerate(data["t"]):
+            q = np.array([np.interp(t, boom["t"], col) for col in np.asarray(boom["q"]).T])
+            _close(_poses(data, f"{name}/tool")[k], fk(rig.arms[name], q))  # held at its end
+    holes = {x["name"]: np.reshape(x["pts"], (-1, 3)) for x in data["lines"]
+             if x["name"].endswith("/holes")}
+    np.testing.assert_allclose(holes["left/holes"], [[9000, 2000, 1500], [10000, 2000, 1500]])
+    # The trajectory files: one per boom, its own samples.
+    r = client.get("/jobs/rnd/trajectory?arm=middle")
+    assert r.status_code == 200, r.text
+    out = r.json()
+    assert out["robot"] == rig.arms["middle"].id and len(out["points"]) == 7
+    np.testing.assert_allclose([p["positions"] for p in out["points"]],
+                               result["booms"]["middle"]["q"], atol=1e-12)
+    r = client.get("/jobs/rnd/trajectory?format=csv")
+    assert r.status_code == 422 and _detail(r)["loc"] == ["query", "arm"]
