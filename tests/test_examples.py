@@ -108,6 +108,10 @@ def to_request(argv: list[str], workdir: Path) -> dict:
             if data.startswith("@"):  # curl -d @file drops the file's line breaks
                 data = (workdir / data[1:]).read_text().replace("\r", "").replace("\n", "")
             body = data
+        elif a == "--data-binary":  # @file: its bytes as they are
+            data = next(args)
+            body = ((workdir / data[1:]).read_bytes().decode("utf-8") if data.startswith("@")
+                    else data)
         elif a == "-F":
             form.append(next(args))
         elif a == "-o":
