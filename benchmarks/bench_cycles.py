@@ -1,4 +1,6 @@
-"""Work cycles planned whole, every answer re-checked; ``main()`` prints each section.
+"""Work cycles planned whole, every answer re-checked; ``main()`` prints each section: the
+pallet below and the pile plans of ``bench_piles.py`` (``--skip-pallet``, ``--skip-piles``,
+``--quick-piles``).
 
 **Pallet** (``pallet_section``): the GLT palletizer, on a 500 mm pedestal (its base raised
 500 mm: on the floor it cannot hold a box level over a fourth layer of 250 mm boxes, its
@@ -323,8 +325,16 @@ def main() -> None:
     parser.add_argument("--layers", type=int, default=4)
     parser.add_argument("--time-limit", type=float, default=10.0,
                         help="s of planning per task")
+    parser.add_argument("--skip-pallet", action="store_true")
+    parser.add_argument("--skip-piles", action="store_true")
+    parser.add_argument("--quick-piles", action="store_true", help="the 60-pile plan only")
     args = parser.parse_args()
-    pallet_section(args.layers, args.time_limit)
+    if not args.skip_pallet:
+        pallet_section(args.layers, args.time_limit)
+    if not args.skip_piles:
+        from bench_piles import piles_section  # the pile driver's half (bench_piles.py)
+
+        print("\n".join(piles_section(args.quick_piles)))
 
 
 if __name__ == "__main__":
