@@ -488,6 +488,10 @@ class _Solver:
         self.half = np.where(finite, 0.5 * (upper - lower), np.inf)
         self.iterations = 0
         self._eye = np.eye(self.dof)
+        #: The most a joint moves in one null-space step (rad, mm).
+        self.null_cap = 0.25 * opts.jump_threshold / np.asarray(weights, dtype=float)
+        prismatic = np.asarray(weights, dtype=float) < 1.0
+        self.null_cap[prismatic] = np.minimum(self.null_cap[prismatic], 0.5 * opts.max_step)
 
     def _error(self, q: np.ndarray, T_goal: np.ndarray) -> tuple[np.ndarray, np.ndarray,
                                                                   float, float]:
@@ -512,11 +516,13 @@ class _Solver:
         J, _ = jacobian_and_pose(self.model, np.ascontiguousarray(q))
         J[3:] *= self.rho
         dq = z - np.linalg.pinv(J, rcond=1e-9) @ (J @ z)
-        # Never more than a quarter of the jump threshold on any joint.
-        worst = float(np.max(np.abs(dq) * self.weights))
-        cap = 0.25 * self.opts.jump_threshold
-        if worst > cap:
-            dq *= cap / worst
+        # Never more than a quarter of the jump threshold on any joint, nor half a step's
+        # length on a prismatic one (a telescope beside a parallel feed would otherwise
+        # trade tens of mm with it in every step); scaled as a whole, it stays in the null
+        # space.
+        worst = float(np.max(np.abs(dq) / self.null_cap))
+        if worst > 1.0:
+            dq /= worst
         return np.clip(q + dq, self.lower, self.upper)
 
     def solve(self, q: np.ndarray, T_goal: np.ndarray, limits: bool

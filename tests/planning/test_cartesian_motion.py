@@ -484,3 +484,33 @@ def test_the_step_solver_never_answers_a_state_past_a_limit():
     # The null-space motion off the limits keeps within them too.
     moved = solver.null_step(q)
     assert np.all(moved <= checker.upper) and np.all(moved >= checker.lower)
+
+
+def test_a_telescope_beside_a_parallel_feed_moves_little_in_a_step():
+    """The drilling arm's telescope and feed are parallel: the null-space motion off the
+    limits trades one for the other. Near the telescope's limit it moves at most half a
+    step's length (2.5 mm) in one null-space step, and along a 1 m feed line the telescope's
+    largest move between two states stays a few steps' length (82 mm before this bound)."""
+    from kinematics.fk import fk
+    from planning.motion import cartesian
+
+    model = builtin_model("tunnel_drill_arm")
+    checker = MotionChecker(RobotCollisionModel.from_model(model), self_collision=False)
+    lo, hi = np.asarray(model.lower), np.asarray(model.upper)
+    opts = cartesian._options(5.0, 0.05, 0.3, 0.1, 1e-3, 0.01, 0.1)
+    solver = cartesian._Solver(model, checker.lower, checker.upper, checker.weights, opts)
+    rng = np.random.default_rng(1)
+    worst_null = worst_line = 0.0
+    for _ in range(20):
+        q = lo + rng.uniform(0.1, 0.9, 7) * (hi - lo)
+        q[2] = lo[2] + rng.uniform(0.0, 0.05) * (hi[2] - lo[2])
+        q[6] = lo[6] + rng.uniform(0.0, 0.1) * (hi[6] - lo[6])
+        worst_null = max(worst_null, float(np.abs(solver.null_step(q) - q)[[2, 6]].max()))
+        T0 = fk(model, q)
+        target = T0.copy()
+        target[:3, 3] += 1000.0 * T0[:3, 2]
+        res = plan_line(checker, q, target, orientation="hold")
+        if len(res.path) > 1:
+            worst_line = max(worst_line, float(np.abs(np.diff(res.path[:, 2])).max()))
+    assert 0.0 < worst_null <= 2.5 + 1e-9
+    assert worst_line <= 30.0
