@@ -179,7 +179,10 @@ class ControlPanel:
         has = duration > 0
         self.time.disabled = not has
         self.play.disabled = not has
-        self.time.max = max(duration, 1e-3)
-        self.time.step = max(duration / 500.0, 1e-3)
+        # A round step (0.01 s for a 14 s motion) and the end rounded up to it: the panel
+        # shows "14.07", not "14.066508".
+        step = 10.0 ** math.floor(math.log10(max(duration / 500.0, 1e-3)))
+        self.time.step = step
+        self.time.max = max(round(math.ceil(duration / step - 1e-9) * step, 6), step)
         self.time.value = 0.0
         self.play.label = "Play"
