@@ -39,10 +39,25 @@ What each drawer reads, in mm, rad, s:
   states get no waypoint ball), and ``Plan.task`` (``web.tasks.TaskTrack``) holds when each
   step plays, what it holds and the loads its attach steps take, which the viewer draws
   under ``loads/<id>`` and moves during playback.
+* ``round``: params ``rig`` and the holes as the job reads them (``RoundParams.rig_holes``:
+  ``holes`` or ``plan_iredes``, ``rig_pose`` applied); result ``booms.<boom>.t``, ``.q`` (each
+  boom on the round's one clock, held at its last sample), ``holes[].boom``, ``start_s``,
+  ``end_s`` (the holes, collar to toe, a ``TimedSegments`` recoloured as the round plays:
+  planned, drilled, done) and ``unreachable``.
+* ``pallet``: params ``robot``, ``pallet``, ``box``, ``grip_offset_mm``, ``dwell_s``,
+  ``obstacles``; result ``boxes[]`` (``status``, ``q_pick``, ``q_place``, ``carry_s``,
+  ``return_s``): no joint paths, so the arm moves straight in joint space from pick to place
+  on the planned times, each placed box a load (``web.tasks``) on the tool during its carry
+  and resting at the place from then on.
+* ``piles``: params ``robot``, the plan (``PilesParams.pile_plan``), ``base_height``,
+  ``carrier_radius``, ``carrier_start``, ``scene``; result ``piles[]`` (``setup``, ``order``,
+  ``q``), ``setups[]`` (``x``, ``y``, ``heading``), ``unreached``: a static site map, the arm
+  drawn (a line through its joints) at each set-up's first pile.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -55,16 +70,29 @@ from app.jobs.catalog import KINDS
 from app.jobs.drilling_kinds import MultiarmParams, MultiarmResult, SequenceParams, SequenceResult
 from app.jobs.kinds import WorkspaceParams, WorkspaceResult, error_text
 from app.jobs.motion_kinds import MotionJobResult, MotionParams, collision_scene
+from app.jobs.pallet_kinds import PalletJobResult, PalletParams
 from app.jobs.path_kinds import PathParams, PathResult, SceneIn
+from app.jobs.pile_kinds import PilesParams, PilesResult
+from app.jobs.round_kinds import RoundParams, RoundResult
 from app.jobs.tracking_kinds import TrackingParams, TrackingResult
 from kinematics.errors import FieldError
-from kinematics.fk import fk
+from kinematics.fk import fk, fk_frames
 from kinematics.model import RobotModel
 from planning.motion import PRISMATIC_SCALE
 
 from .site import object_bounds_mm
-from .tasks import SEGMENT_COLOR, TaskTrack, state_times, step_tool_paths, task_track
+from .tasks import (
+    SEGMENT_COLOR,
+    TOOL,
+    Load,
+    StepSpan,
+    TaskTrack,
+    state_times,
+    step_tool_paths,
+    task_track,
+)
 from .text import code, plain
+from .timed import TimedSegments
 
 __all__ = [
     "DRAWERS",
@@ -76,6 +104,7 @@ __all__ = [
     "Box",
     "Capsule",
     "Site",
+    "TimedSegments",
     "Plan",
     "DrawContext",
     "drawer",
@@ -199,6 +228,8 @@ class Plan:
     boxes: tuple[Box, ...] = ()
     capsules: tuple[Capsule, ...] = ()
     sites: tuple[Site, ...] = ()
+    #: Segments recoloured with the plan's time (``web.timed``): a round's holes.
+    timed: tuple[TimedSegments, ...] = ()
     motions: dict[str, Motion] = field(default_factory=dict)
     summary: str = ""
     #: A task's steps as played and the loads it carries (``web.tasks``); None otherwise.
@@ -212,7 +243,7 @@ class Plan:
     def names(self) -> list[str]:
         """Every node name (relative) the plan draws."""
         groups = (self.clouds, self.polylines, self.spheres, self.boxes, self.capsules,
-                  self.sites)
+                  self.sites, self.timed)
         return [item.name for group in groups for item in group]
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -231,6 +262,10 @@ class Plan:
                 P = np.asarray(item.points, dtype=float).reshape(-1, 3)
                 if len(P):
                     add(P.min(axis=0), P.max(axis=0))
+        for item in self.timed:
+            P = np.asarray(item.points, dtype=float).reshape(-1, 3)
+            if len(P):
+                add(P.min(axis=0), P.max(axis=0))
         for s in self.spheres:
             C = np.asarray(s.centers, dtype=float).reshape(-1, 3)
             if len(C):
@@ -706,6 +741,258 @@ def plan_from_motion(answer: Any, *, models: ModelLookup) -> Plan:
     head = (f"**Motion** of {code(model.id)} (answer of {code(f'POST /robots/{model.id}/motion')}"
             f", {plain(typed.planner)}): **{plain(typed.status)}**")
     return _motion_plan(model, typed, "motion", job="", head=head)
+
+
+# ---- work cycles: round, pallet, piles ---------------------------------------------------
+#: A round's hole before its boom starts it, and one no boom can drill.
+HOLE_PLANNED_COLOR = (165, 165, 165)
+HOLE_UNREACHABLE_COLOR = (220, 40, 40)
+#: A drilled hole's colour: its boom's, this much of it.
+HOLE_DONE_SHADE = 0.35
+#: Colours of the set-ups of a pile plan, in turn.
+SETUP_COLORS = ((30, 120, 230), (230, 120, 20), (20, 160, 60), (200, 60, 160),
+                (120, 80, 200), (0, 170, 170), (180, 150, 20), (120, 120, 120))
+#: Length (mm) of the stroke drawn along a pile's axis from its head.
+PILE_STROKE_MM = 1500.0
+PALLET_COLOR = (150, 110, 60)
+
+
+def _bright(color: tuple[int, int, int]) -> tuple[int, int, int]:
+    """``color`` at full brightness (its largest channel 255): a hole being drilled."""
+    top = max(max(color), 1)
+    return tuple(int(round(c * 255 / top)) for c in color)  # type: ignore[return-value]
+
+
+def _dark(color: tuple[int, int, int]) -> tuple[int, int, int]:
+    return tuple(int(HOLE_DONE_SHADE * c) for c in color)  # type: ignore[return-value]
+
+
+def _timed_motion(q: Any, key: str, model: RobotModel, t: Any, tkey: str) -> Motion:
+    """A motion on the job's own clock: times ``t`` as given (>= 0, non-decreasing; not
+    shifted to start at 0, so several arms and the holes keep one clock)."""
+    rows = _joints(q, key, model)
+    times = np.asarray(t, dtype=float)
+    if times.shape != (len(rows),) or np.any(np.diff(times) < 0) or \
+            (len(times) and times[0] < 0):
+        raise ValueError(f"{tkey}: expected {len(rows)} non-decreasing times from 0 or "
+                         f"later, got {len(times)}")
+    return Motion(times, rows)
+
+
+@drawer("round")
+def _round(params: RoundParams, result: RoundResult, ctx: DrawContext) -> Plan:
+    """Every boom on its own times (held at its last sample once done), the holes collar to
+    toe recoloured as the round plays: grey planned, the boom's colour lightened while it
+    drills, darkened once done; red: no boom can drill it."""
+    rig = ctx.rigs.get(params.rig)
+    if rig is None:
+        raise ValueError(f"params.rig: unknown rig {params.rig!r}")
+    motions: dict[str, Motion] = {}
+    polylines = []
+    colors = {a: ARM_COLORS.get(a, SETUP_COLORS[k % len(SETUP_COLORS)])
+              for k, a in enumerate(rig.arms)}
+    for boom, data in result.booms.items():
+        if boom not in rig.arms:
+            raise ValueError(f"result.booms.{boom}: rig {params.rig!r} has no boom {boom!r}")
+        model = rig.arms[boom]
+        motions[boom] = _timed_motion(data.q, f"result.booms.{boom}.q", model, data.t,
+                                      f"result.booms.{boom}.t")
+        tool = fk(model, motions[boom].q)[:, :3, 3]
+        if len(tool) > 1:
+            polylines.append(Polyline(f"{boom}/tool_path", tool, colors[boom], width=0.5))
+    # The holes as the job reads them: params.holes or the IREDES plan, rig_pose applied.
+    C, D, ids, _ = params.rig_holes()
+    where = {h: k for k, h in enumerate(ids)}
+    K = len(ids)
+    times = np.full((K, 2), np.inf)
+    palette = np.empty((K, 3, 3))
+    palette[:] = HOLE_PLANNED_COLOR
+    drilled = np.zeros(K, dtype=bool)
+    for j, h in enumerate(result.holes):
+        k = where.get(h.id)
+        if k is None:
+            raise ValueError(f"result.holes.{j}.id: the plan has no hole {h.id!r}")
+        if h.boom not in colors:
+            raise ValueError(f"result.holes.{j}.boom: rig {params.rig!r} has no boom "
+                             f"{h.boom!r}")
+        if not h.start_s <= h.end_s:
+            raise ValueError(f"result.holes.{j}.end_s: ends before it starts")
+        times[k] = (h.start_s, h.end_s)
+        palette[k, 1], palette[k, 2] = _bright(colors[h.boom]), _dark(colors[h.boom])
+        drilled[k] = True
+    unreachable = [where[u.id] for u in result.unreachable if u.id in where]
+    palette[unreachable] = HOLE_UNREACHABLE_COLOR
+    holes = TimedSegments("holes", np.stack([C, D], axis=1), times, palette, width=2.0)
+    lines = [f"**Drilling round** of {code(params.rig)} (job {code(ctx.job)}): "
+             f"{int(drilled.sum())} of {K} holes drilled by "
+             f"{', '.join(plain(b) for b in motions) or 'no boom'}",
+             f"- cycle time: {result.cycle_time_s:,.0f} s (lower bound "
+             f"{result.lower_bound_s:,.0f} s)"]
+    for boom, data in result.booms.items():
+        lines.append(f"- {plain(boom)}: {len(data.holes)} holes, done at {data.end_s:,.0f} s, "
+                     f"waited {data.wait_s:,.0f} s")
+    if result.min_boom_clearance_mm is not None:
+        lines.append(f"- least boom clearance: {_fmt(result.min_boom_clearance_mm)}"
+                     + (f" ({plain(result.clearance_pair)})" if result.clearance_pair else ""))
+    if result.unreachable:
+        lines.append(f"- **{len(result.unreachable)} hole(s) no boom can drill** (red)")
+    lines.append("- holes collar to toe: grey planned, the boom's colour (bright) while "
+                 "drilled, dark once done; each boom holds its last pose when done")
+    return Plan(ctx.job, "round", robot=params.rig, polylines=tuple(polylines),
+                timed=(holes,), motions=motions, summary="\n".join(lines))
+
+
+def _keyframes(frames: list[tuple[float, np.ndarray]]) -> Motion:
+    """A motion through ``(time, q)`` key frames (non-decreasing times); of frames at one
+    time the last is kept."""
+    t = np.array([f[0] for f in frames], dtype=float)
+    keep = np.append(np.diff(t) > 1e-12, True)
+    return Motion(t[keep], np.array([f[1] for f in frames], dtype=float)[keep])
+
+
+@drawer("pallet")
+def _pallet(params: PalletParams, result: PalletJobResult, ctx: DrawContext) -> Plan:
+    """The pallet, its obstacles and the boxes: each placed box is taken at its pick, rides
+    on the tool during its carry and rests where it was placed from its place time on. The
+    result holds each box's pick and place configurations and durations, not the joint paths:
+    the arm moves straight in joint space between them (said in the panel)."""
+    from planning.cycles.pallet import grasp_transform
+    from planning.geometry.objects import parse_object, parse_objects
+
+    model = ctx.models(params.robot)
+    _check_joints(result.joints, model, "result.joints")
+    pallet, box = params.objects()
+    G = grasp_transform(box, params.grip_offset_mm)
+    dwell = params.dwell_s
+    frames: list[tuple[float, np.ndarray]] = []
+    loads: list[Load] = []
+    spans: list[StepSpan] = []
+    clock = 0.0
+    placed = [b for b in result.boxes if b.status == "placed"]
+    for b in placed:
+        key = f"result.boxes.{b.index}"
+        if b.q_pick is None or b.q_place is None:
+            raise ValueError(f"{key}: a placed box needs q_pick and q_place")
+        q_pick = _joints([b.q_pick], f"{key}.q_pick", model)[0]
+        q_place = _joints([b.q_place], f"{key}.q_place", model)[0]
+        pick_t = clock
+        place_t = pick_t + dwell + b.carry_s
+        frames += [(pick_t, q_pick), (pick_t + dwell, q_pick), (place_t, q_place),
+                   (place_t + dwell, q_place)]
+        name = f"box{b.index}"
+        shape = parse_object({"type": "box", "id": name, "size": list(result.box_size),
+                              "pose": G.tolist()}, 0)
+        loads.append(Load(name, name, shape, TOOL, pick_t, q_pick, detach_time=place_t,
+                          detach_q=q_place, placed=True, shown_from=pick_t, step=b.index))
+        spans.append(StepSpan(b.index, "carry", pick_t, place_t,
+                              f"box {b.index} (layer {b.layer}): carried, {b.carry_s:.1f} s"))
+        spans.append(StepSpan(b.index, "return", place_t, place_t + dwell + b.return_s,
+                              f"box {b.index} placed; back to the pick, {b.return_s:.1f} s"))
+        clock = place_t + dwell + b.return_s
+    motions = {"": _keyframes(frames)} if frames else {}
+    sites = [Site("pallet", (parse_object(pallet.object(), 0),))]
+    if params.obstacles:
+        sites.append(Site("obstacles", tuple(parse_objects(list(params.obstacles)))))
+    lines = [f"**Pallet** of {code(model.id)} (job {code(ctx.job)}, {plain(result.pattern)}):"
+             f" {result.placed} of {result.total} boxes placed",
+             f"- cycle: {result.pallet_s:,.1f} s, {result.boxes_per_hour:,.0f} boxes/h",
+             f"- per layer: {', '.join(str(n) for n in result.per_layer)} boxes"]
+    missed = [b for b in result.boxes if b.status != "placed"]
+    if missed:
+        lines.append("- not placed: " + ", ".join(
+            f"box {b.index} ({plain(b.status.replace('_', ' '))})" for b in missed[:8])
+            + (" …" if len(missed) > 8 else ""))
+    lines.append("- the result holds each box's pick and place configurations, not the "
+                 "planned paths: the arm moves **straight in joint space** between them "
+                 "(the planned carry goes around the boxes placed), on the planned times")
+    lines.append("- brown: a box, on the tool while carried, where it rests once placed")
+    track = TaskTrack(len(spans), tuple(spans), tuple(loads)) if loads else None
+    return Plan(ctx.job, "pallet", robot=model.id, sites=tuple(sites), motions=motions,
+                summary="\n".join(lines), task=track)
+
+
+@drawer("piles")
+def _piles(params: PilesParams, result: PilesResult, ctx: DrawContext) -> Plan:
+    """The site: each pile a stroke down its axis from its head, coloured by its set-up (red:
+    unreached); per set-up (``setups/<k>``) the carrier (a post from the ground to the arm's
+    base), the piles' heads and the arm at its first pile (a line through its joints, site
+    frame); the carrier's route between set-ups."""
+    from planning.cycles.piles import setup_frames
+
+    model = ctx.models(params.robot)
+    plan = params.pile_plan()   # the job's own reading of the plan (rows or CSV)
+    where = {pid: k for k, pid in enumerate(plan.ids)}
+    S = np.array([[s.x, s.y, s.heading] for s in result.setups], dtype=float).reshape(-1, 3)
+    frames = setup_frames(S, params.base_height) if len(S) else np.zeros((0, 4, 4))
+    strokes, colors = [], []
+    capsules, spheres, polylines = [], [], []
+    first: dict[int, Any] = {}
+    heads: dict[int, list[np.ndarray]] = {}
+    for j, p in enumerate(result.piles):
+        k = where.get(p.id)
+        if k is None:
+            raise ValueError(f"result.piles.{j}.id: the plan has no pile {p.id!r}")
+        if not 0 <= p.setup < len(S):
+            raise ValueError(f"result.piles.{j}.setup: set-ups are numbered 0 to "
+                             f"{len(S) - 1}, got {p.setup}")
+        color = SETUP_COLORS[p.setup % len(SETUP_COLORS)]
+        strokes.append([plan.heads[k], plan.heads[k] + PILE_STROKE_MM * plan.axes[k]])
+        colors.append([color])
+        heads.setdefault(p.setup, []).append(plan.heads[k])
+        if p.setup not in first or p.order < first[p.setup][0]:
+            first[p.setup] = (p.order, _joints([p.q], f"result.piles.{j}.q", model)[0])
+    for u in result.unreached:
+        k = where.get(u.id)
+        if k is not None:
+            strokes.append([plan.heads[k], plan.heads[k] + PILE_STROKE_MM * plan.axes[k]])
+            colors.append([HOLE_UNREACHABLE_COLOR])
+    radius = max(params.carrier_radius, 150.0)
+    for s in range(len(S)):
+        color = SETUP_COLORS[s % len(SETUP_COLORS)]
+        base = frames[s, :3, 3]
+        capsules.append(Capsule(f"setups/{s}/carrier", np.array([base[0], base[1], 0.0]),
+                                base, radius, color))
+        if s in heads:
+            H = np.array(heads[s])
+            spheres.append(Spheres(f"setups/{s}/piles", H, np.full(len(H), 120.0), color))
+        if s in first:
+            joints = frames[s] @ fk_frames(model, first[s][1])   # (dof + 1, 4, 4), site
+            polylines.append(Polyline(f"setups/{s}/arm", joints[:, :3, 3], color, width=3.0))
+    route = S[:, :2]
+    if params.carrier_start is not None and len(S):
+        route = np.vstack([[params.carrier_start], route])
+    if len(route) > 1:
+        polylines.append(Polyline("route", np.column_stack([route, np.zeros(len(route))]),
+                                  (90, 90, 90)))
+    timed = ()
+    if strokes:
+        P = np.array(strokes, dtype=float)
+        timed = (TimedSegments("piles", P, np.zeros((len(P), 0)), np.array(colors),
+                               width=2.0),)
+    site = ()
+    if params.scene is not None:
+        objects = collision_scene(params.scene).objects
+        site = (Site("scene", tuple(objects)),) if objects else ()
+    lines = [f"**Pile plan** for {code(model.id)} (job {code(ctx.job)}): "
+             f"{result.piles_reached} of {result.piles_total} piles from {len(S)} set-up(s) "
+             f"({plain(result.cover.method)}"
+             + (", proven fewest" if result.cover.optimal else "") + ")",
+             f"- cycle: {result.cycle_time_s:,.0f} s (work {result.work_s:,.0f} s, "
+             f"relocation {result.relocation_s:,.0f} s, carrier travel "
+             f"{result.travel_mm / 1000:,.1f} m)"]
+    for s, so in enumerate(result.setups):
+        lines.append(f"- set-up {s}: ({so.x:,.0f}, {so.y:,.0f}) mm, heading "
+                     f"{math.degrees(so.heading):.0f}°, {so.piles} piles, "
+                     f"{so.start:,.0f}–{so.end:,.0f} s")
+    if result.unreached:
+        lines.append(f"- **{len(result.unreached)} pile(s) unreached** (red)")
+    lines.append("- piles: a stroke down the axis from the head, coloured by set-up; at each "
+                 "set-up the carrier (a post) and the arm at its first pile (a line through "
+                 "its joints); grey: the carrier's route. The robot model is not moved to "
+                 "the set-ups")
+    return Plan(ctx.job, "piles", capsules=tuple(capsules), spheres=tuple(spheres),
+                polylines=tuple(polylines), timed=timed, sites=site,
+                summary="\n".join(lines))
 
 
 def _parse(model: type[BaseModel], value: Any, where: str) -> Any:

@@ -84,6 +84,7 @@ from .scene import (
 from .site import SCENE_ROOT, SiteNodes, draw_site
 from .tasks import LoadNodes, check_links, link_frame
 from .text import code, plain
+from .timed import TimedNodes
 
 __all__ = ["Viewer", "JobNotReady", "MM_TO_M", "wxyz_from_matrix", "ROBOT_ROOT", "PLAN_ROOT",
            "SCENE_ROOT"]
@@ -143,6 +144,7 @@ class Viewer:
         self._plan: Plan | None = None
         self._plan_handles: dict[str, Any] = {}
         self._loads: LoadNodes | None = None  # a task's carried loads (``web.tasks``)
+        self._timed: TimedNodes | None = None  # segments recoloured in time (``web.timed``)
         self._time = 0.0
         self._playing = False
         self._ik_pending: tuple[np.ndarray, bool] | None = None
@@ -881,6 +883,10 @@ class Viewer:
                     self._loads = LoadNodes(self.server.scene, root, plan.task.loads,
                                             self._link_frames(next(iter(plan.motions))))
                     self._plan_handles.update(self._loads.handles)
+                if plan.timed:
+                    self._timed = TimedNodes(self.server.scene, root, plan.timed,
+                                             max(0.004, 0.004 * size))
+                    self._plan_handles.update(self._timed.handles)
                 self.gui.plan.content = plan.summary
                 self.gui.set_playback(plan.duration)
                 self._time = 0.0
@@ -920,6 +926,7 @@ class Viewer:
         self._plan_handles = {}
         self._plan = None
         self._loads = None
+        self._timed = None
         self._playing = False
         self.gui.plan.content = "No plan shown: `POST /viewer/show {\"job\": id}`."
         self.gui.set_playback(0.0)
@@ -951,6 +958,8 @@ class Viewer:
                 self.set_q(motion.at(self._time), arm, source="playback")
             if self._loads is not None:
                 self._loads.update(self._time, self._arms[next(iter(self._plan.motions))].q)
+            if self._timed is not None:
+                self._timed.update(self._time)
             task = self._plan.task
             if task is not None:
                 live = task.text_at(self._time)
