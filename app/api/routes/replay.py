@@ -22,6 +22,7 @@ from ...fields import StrictModel, joint_batch
 from ...jobs.motion_kinds import SceneIn
 from ...jobs.path_kinds import MAX_TRAJECTORY_SAMPLES
 from ...replay import build_replay, replay_html
+from ...responses import FastJSONRoute
 from ...trajectory_export import ExportError
 from ..common import resolve_scene, succeeded_job
 from ..deps import RobotDep
@@ -31,7 +32,7 @@ from ..schemas import body_examples
 __all__ = ["router", "motion_router"]
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
-motion_router = APIRouter(prefix="/robots", tags=["motion"])
+motion_router = APIRouter(prefix="/robots", tags=["motion"], route_class=FastJSONRoute)
 
 JobId = Annotated[str, Path(description="Job id", max_length=64)]
 
