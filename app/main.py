@@ -33,6 +33,7 @@ from .api.routes import (
     replay,
     rigs,
     robots,
+    round_plan,
     scenes,
     trajectories,
     viewer,
@@ -196,6 +197,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     api.include_router(trajectories.router)
     api.include_router(jobs.router)
     api.include_router(exports.router)
+    api.include_router(round_plan.router)
     api.include_router(replay.router)
     api.include_router(replay.motion_router)
     api.include_router(scenes.router)

@@ -6,7 +6,11 @@ three-boom jumbo on two faces:
   (a small local reader if that module is missing) and placed in the rig frame by the pose
   its README gives (the rig at x = 503,000, z = 21,500 mm of the site frame);
 * ``paper``: paper 002's 132-hole face (``face_pattern`` 9.8 m x 7.8 m at 470 mm spacing),
-  holes 3.5 m deep, contour holes looking out 3 degrees.
+  holes 3.5 m deep, contour holes looking out 3 degrees;
+* ``face60``, ``face90``: generated full faces (``face_pattern``, horseshoe profiles of 60 and
+  90 m^2 with cut, stoping, helper, contour and lifter holes, 4 and 5 m deep, contour and
+  lifters looking out 3 degrees), each written to IREDES and read back before planning
+  (``--faces face60,face90``).
 
 For each: the round planned (booms at once, prioritised waits) beside (a) one boom at a time
 (the same holes, moves and drilling back to back: the sum of the booms' busy times), (b) the
@@ -17,7 +21,8 @@ tool axis within 0.5 degrees of the hole axis and the tip on the hole's line ove
 (by FK), and zero contacts by an exact re-check of the whole timeline (10 ms, 5 mm).
 
 A report: it exits 0 whatever the numbers. ``.venv/bin/python benchmarks/bench_round.py
-[--faces sample,paper] [--skip-baseline]``. Planning times depend on the machine's load.
+[--faces sample,paper,face60,face90] [--skip-baseline]``. Planning times depend on the
+machine's load.
 """
 
 from __future__ import annotations
@@ -83,6 +88,43 @@ def paper_holes() -> tuple[np.ndarray, np.ndarray, list[str], list[str]]:
             out = out / np.linalg.norm(out)
             T[k, 1:] += depth * math.tan(math.radians(LOOK_OUT_DEG)) * out
     return C, T, [f"{k}" for k in range(len(C))], list(pat.kinds)
+
+
+#: Generated full faces: horseshoe profiles of 60 and 90 m^2 (width, height mm; the area is
+#: width x (height - width / 2) + pi (width / 2)^2 / 2), contour spacing (mm) and depth (mm).
+FULL_FACES = {"face60": {"width": 8_000.0, "height": 8_360.0, "spacing": 600.0,
+                         "depth": 4_000.0},
+              "face90": {"width": 11_000.0, "height": 9_360.0, "spacing": 600.0,
+                         "depth": 5_000.0}}
+
+
+def full_face_holes(name: str) -> tuple[np.ndarray, np.ndarray, list[str], list[str]]:
+    """A generated full face (``FULL_FACES``: cut, stoping, helper, contour and lifter holes
+    of ``face_pattern``), the contour and lifters looking out ``LOOK_OUT_DEG`` (the lifters
+    down), written to IREDES (``write_iredes``) and read back (checksum verified) before
+    planning: collars, toes (rig frame, mm), ids and types."""
+    from planning.drilling.patterns import face_pattern
+    from planning.drilling.plans import DrillPlan, Hole, read_iredes, write_iredes
+
+    spec = dict(FULL_FACES[name])
+    depth = spec.pop("depth")
+    pat = face_pattern(shape="horseshoe", **spec)
+    C = pat.holes
+    centre = np.array([C[:, 1].mean(), C[:, 2].mean()])
+    T = C + np.array([depth, 0.0, 0.0])
+    look = depth * math.tan(math.radians(LOOK_OUT_DEG))
+    for k, kind in enumerate(pat.kinds):
+        if kind == "contour":
+            out = C[k, 1:] - centre
+            T[k, 1:] += look * out / np.linalg.norm(out)
+        elif kind == "lifter":
+            T[k, 2] -= look
+    holes = tuple(Hole(f"{kind[0].upper()}{k + 1}", "", C[k], T[k], kind.capitalize())
+                  for k, kind in enumerate(pat.kinds))
+    text = write_iredes(DrillPlan(name, f"{name} generated face", np.eye(4), "rig", holes),
+                        created="2026-01-01T00:00:00")
+    plan = read_iredes(text.encode("utf-8"))
+    return plan.collars(), plan.toes(), plan.ids(), [h.type for h in plan.holes]
 
 
 def check_round(rig, res, C, T, ids) -> tuple[int, float, int, float]:
@@ -186,6 +228,11 @@ def main() -> int:
             run_face("sample_round.xml", *sample_holes(), not args.skip_baseline)
         elif face == "paper":
             run_face("paper 002 face", *paper_holes(), not args.skip_baseline)
+        elif face in FULL_FACES:
+            f = FULL_FACES[face]
+            run_face(f"{face}: horseshoe {f['width'] / 1000:g} m x {f['height'] / 1000:g} m, "
+                     f"{f['depth'] / 1000:g} m holes", *full_face_holes(face),
+                     not args.skip_baseline)
     return 0
 
 

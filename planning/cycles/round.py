@@ -31,9 +31,10 @@ points, mm, rig frame) and:
    collision model (capsules per link) against the static scene and the other booms parked,
    and timed time-optimally to the joint speed and acceleration limits (the planner's
    ``planning.trajectories`` timing). The feed onto the collar and off the hole are
-   rest-to-rest quintics within the feed's limits; the drilling itself is a Cartesian line
-   (``planning.motion.cartesian.plan_line``) from collar to toe with every joint but the
-   feed held, run at the penetration rate. After its last hole a boom returns to its park
+   rest-to-rest quintics within the feed's limits; the drilling itself is the Cartesian line
+   from collar to toe, every joint but the feed held (the feed, along the tool axis set on
+   the hole's axis, moves the tip along that line; checked free at reach), run at the
+   penetration rate. After its last hole a boom returns to its park
    pose.
 5. **Prioritised timing.** Booms are timed one after another in priority order (most work
    first). A boom's next task (transfer, collar, drill, retract) starts as soon as its last
@@ -46,7 +47,11 @@ points, mm, rig frame) and:
    park poses, which every move of the boom was planned around.
 6. **Check.** The whole round is then sampled once more on one clock (every boom, the same
    10 ms / 5 mm rule over the union of their motion) and the least boom-boom clearance is
-   computed exactly; the least clearance from the scene is the motion checker's exact one
+   computed exactly: per block of instants the boxes round each capsule's end points bound
+   the distance of each pair of capsules from below, and the exact distance is computed
+   for the pairs and blocks whose bound is under the least found so far (an upper bound,
+   exact at every 64th instant, to begin with), which gives the same least; the least
+   clearance from the scene is the motion checker's exact one
    over the booms' states at the checked instants (at most ``scene_check_states`` of them).
 
 Units: mm, rad, s. Randomness: ``seed`` alone (the motion planner's).
@@ -74,7 +79,6 @@ from ..drilling.boom_time import BoomTime, sequence_by_boom_time
 from ..drilling.envelopes import DRILL_ARM_RADII
 from ..drilling.multiarm import park_configuration
 from ..motion import MotionChecker, plan_motion
-from ..motion.cartesian import plan_line
 from ..sequencing import sequence_holes
 from ..trajectories.trajectory import Limits
 from .round_timeline import (
@@ -82,8 +86,9 @@ from .round_timeline import (
     BoomGeometry,
     BoomTimeline,
     Phase,
-    check_times,
     pair_clearance,
+    refine,
+    sample_ends,
     still,
 )
 
@@ -137,6 +142,12 @@ ALIGN_JOINTS = (0, 1, 2, 4, 5)
 #: Most checks of one boom's delay search before it falls back to starting after the booms
 #: timed before it have finished.
 MAX_DELAY_CHECKS = 4000
+#: Instants per cached block of a timed boom's end points, and most blocks kept (288 kB each
+#: for a six-capsule boom).
+GRID_CHUNK = 1000
+GRID_CACHE = 128
+#: Half the stretch (s) round the last touch checked first when a delayed start is tried.
+HIT_WINDOW_S = 1.0
 ProgressFn = Callable[[float, str], None]
 
 
@@ -440,7 +451,7 @@ def _reach(rig: Rig, booms: Sequence[str], collars, toes, checkers, options: Rou
                 why[k].append(("blocked", f"{name}: its {what} pose collides"))
                 continue
             # Over the feed only the feed joint moves: the tool's line to the toe is the
-            # straight joint-space segment, checked here; plan_line runs once allocated.
+            # straight joint-space segment, checked here (the drilling path of _feed_line).
             if not ch.segment_free(qc, qt):
                 why[k].append(("blocked", f"{name}: the feed's line to the toe collides"))
                 continue
@@ -554,24 +565,18 @@ def _transfer(checker: MotionChecker, qa: np.ndarray, qb: np.ndarray, limits: Li
     return False, f"{res.status.value}: {res.message}"
 
 
-def _feed_line(checker: MotionChecker, model, qc: np.ndarray, toe: np.ndarray,
-               options: RoundOptions) -> np.ndarray:
+def _feed_line(model, qc: np.ndarray, toe: np.ndarray, options: RoundOptions) -> np.ndarray:
     """The drilling path: the tool along the hole axis from the collar pose ``qc`` to the
-    toe as a Cartesian line (``plan_line``, orientation held) with every joint but the feed
-    held at ``qc`` (their limits pinned there), ``(K, dof)``. The feed alone then follows
-    the line; should the line solve stop short, the straight feed motion (the same line,
-    checked free when the hole was found reachable) is used."""
-    lo, hi = qc - 1e-9, qc + 1e-9
-    lo[FEED_JOINT], hi[FEED_JOINT] = model.lower[FEED_JOINT], model.upper[FEED_JOINT]
-    frozen = MotionChecker(checker.cm, checker.scene, lower=lo, upper=hi,
-                           margin=checker.margin)
-    line = plan_line(frozen, qc, toe, orientation="hold", limit_avoidance=0.0,
-                     max_step=options.feed_max_step)
-    if line.success and line.fraction >= 1.0 - 1e-9 and len(line.path) >= 2:
-        return np.asarray(line.path, dtype=float)
+    toe, every joint but the feed held at ``qc``, ``(K, dof)`` at feed steps of at most
+    ``feed_max_step`` mm. With the other joints held the feed (prismatic along tool z) moves
+    the tip on a straight line along the tool axis, which the collar pose put on the hole's
+    axis (within ``ALIGN_TOL_RAD``): the Cartesian line from collar to toe, orientation
+    held. Its states were checked free (1 mm steps, ``clearance`` margin) when the hole was
+    found reachable, so they are not checked again here."""
     qt = qc.copy()
     qt[FEED_JOINT] += float(np.linalg.norm(toe - fk(model, qc)[:3, 3]))
-    return np.stack([qc, qt])
+    n = max(1, int(math.ceil((qt[FEED_JOINT] - qc[FEED_JOINT]) / options.feed_max_step)))
+    return qc[None] + np.linspace(0.0, 1.0, n + 1)[:, None] * (qt - qc)[None]
 
 
 def _boom_tasks(name: str, model, checker: MotionChecker, park: np.ndarray,
@@ -593,7 +598,7 @@ def _boom_tasks(name: str, model, checker: MotionChecker, park: np.ndarray,
             blocked[k] = f"{name}: no collision-free transfer to it ({msg})"
             continue
         hid = ids[k]
-        path = _feed_line(checker, model, qc, toes[k], options)
+        path = _feed_line(model, qc, toes[k], options)
         qt = path[-1]
         t_adv = _feed_time(options.standoff, feed_v, feed_a)
         t_drill = depth[k] / rates[k]
@@ -620,41 +625,80 @@ def _boom_tasks(name: str, model, checker: MotionChecker, park: np.ndarray,
 # ---- prioritised timing ----------------------------------------------------------------------
 class _Clock:
     """The booms already timed: their timelines and geometry, and the check of a new boom's
-    motion against them over an interval."""
+    motion against them over an interval.
+
+    The instants checked over ``[t0, t1]`` are the multiples of ``CHECK_DT`` from the last
+    at or before ``t0`` to the first at or after ``t1`` (no two more than 10 ms apart),
+    refined where some capsule end point of either boom moves more than ``REFINE_MM``. A
+    boom resting is evaluated once. The timed booms' end points at
+    the multiples of ``CHECK_DT`` are computed once, in blocks of ``GRID_CHUNK`` instants,
+    and kept (at most ``GRID_CACHE`` blocks): the delay search checks one boom's task at
+    start after start against the same timed booms."""
 
     def __init__(self, geometry: dict[str, BoomGeometry], clearance: float) -> None:
         self.geometry = geometry
         self.clearance = clearance
         self.timed: dict[str, BoomTimeline] = {}
         self.checks = 0
+        self._grid: dict[tuple[str, int], np.ndarray] = {}
+
+    def _grid_ends(self, name: str, k0: int, k1: int) -> np.ndarray:
+        """End points of timed boom ``name`` at ``k * CHECK_DT`` for ``k0 <= k <= k1``."""
+        parts = []
+        for c in range(k0 // GRID_CHUNK, k1 // GRID_CHUNK + 1):
+            E = self._grid.get((name, c))
+            if E is None:
+                if len(self._grid) >= GRID_CACHE:
+                    self._grid.clear()
+                t = np.arange(c * GRID_CHUNK, (c + 1) * GRID_CHUNK) * CHECK_DT
+                E = self.geometry[name].ends(self.timed[name].evaluate(t))
+                self._grid[(name, c)] = E
+            lo = max(k0 - c * GRID_CHUNK, 0)
+            hi = min(k1 - c * GRID_CHUNK, GRID_CHUNK - 1)
+            parts.append(E[lo:hi + 1])
+        return np.concatenate(parts)
 
     def first_touch(self, name: str, evaluate: Callable[[np.ndarray], np.ndarray],
-                    t0: float, t1: float) -> float | None:
+                    t0: float, t1: float, still_at: np.ndarray | None = None
+                    ) -> float | None:
         """The first checked instant in ``[t0, t1]`` at which boom ``name`` moving as
-        ``evaluate(t)`` comes within ``clearance`` of a timed boom (None: never)."""
+        ``evaluate(t)`` (or resting at ``still_at``) comes within ``clearance`` of a timed
+        boom (None: never). The instants: the multiples of ``CHECK_DT`` from the last at or
+        before ``t0`` to the first at or after ``t1`` (the boom's own positions just outside
+        the interval are real ones too), refined as ``refine`` does. The exact distance is
+        computed wherever the bound of ``pair_clearance`` does not already keep the two
+        beyond the clearance."""
         others = list(self.timed)
         if not others or t1 < t0:
             return None
         self.checks += 1
         g = self.geometry
+        fixed = None if still_at is None else g[name].ends(np.asarray(still_at)[None])
         span = 10.0
         a = t0
         while a <= t1:
             b = min(t1, a + span)
+            k0 = int(math.floor(a / CHECK_DT + 1e-9))
+            k1 = max(k0, int(math.ceil(b / CHECK_DT - 1e-9)))
+            t = np.arange(k0, k1 + 1) * CHECK_DT
 
-            def ends(t):
-                return [g[name].ends(evaluate(t))] + [g[o].ends(self.timed[o].evaluate(t))
-                                                      for o in others]
-            t = check_times(a, b, ends)
-            E = ends(t)
+            def own(tt):
+                return (np.repeat(fixed, len(tt), axis=0) if fixed is not None
+                        else g[name].ends(evaluate(tt)))
+
+            def ends(tt):
+                return [own(tt)] + [g[o].ends(self.timed[o].evaluate(tt)) for o in others]
+            E = [own(t)] + [self._grid_ends(o, k0, k1) for o in others]
+            t, E = refine(t, E, ends)
+            first = None
             for j, o in enumerate(others):
-                if _apart(E[0], E[j + 1], g[name].radius.max() + g[o].radius.max()
-                          + self.clearance):
-                    continue
-                d = pair_clearance(E[0], g[name].radius, E[j + 1], g[o].radius)
+                d = pair_clearance(E[0], g[name].radius, E[j + 1], g[o].radius,
+                                   below=self.clearance + 1.0)
                 bad = np.flatnonzero(d <= self.clearance)
-                if len(bad):
-                    return float(t[bad[0]])
+                if len(bad) and (first is None or t[bad[0]] < first):
+                    first = float(t[bad[0]])
+            if first is not None:
+                return first
             if b >= t1:
                 break
             a = b
@@ -672,17 +716,6 @@ def _after(q0: np.ndarray, tasks: list[_Task], t0: float
         phases += task.at(t)
         t += task.duration
     return BoomTimeline(q0, phases), (t0 if tasks else 0.0), None
-
-
-def _apart(Ea: np.ndarray, Eb: np.ndarray, gap: float) -> bool:
-    """Whether the boxes round every capsule end point of two booms over a stretch of
-    instants (``(S, L, 2, 3)`` each) lie more than ``gap`` mm apart: then no two capsules
-    of radius at most ``gap`` minus the clearance can come within it."""
-    a = Ea.reshape(-1, 3)
-    b = Eb.reshape(-1, 3)
-    lo = np.maximum(a.min(axis=0), b.min(axis=0))
-    hi = np.minimum(a.max(axis=0), b.max(axis=0))
-    return bool(np.any(lo - hi > gap))
 
 
 def _time_boom(clock: _Clock, name: str, q0: np.ndarray, tasks: list[_Task],
@@ -704,20 +737,32 @@ def _time_boom(clock: _Clock, name: str, q0: np.ndarray, tasks: list[_Task],
         s = max(rest_from, min_start[k])
         q_rest = rests[k]
         rest_fn = still(q_rest)
-        touch = clock.first_touch(name, rest_fn, rest_from, s) if s > rest_from else None
+        touch = (clock.first_touch(name, rest_fn, rest_from, s, still_at=q_rest)
+                 if s > rest_from else None)
         back = touch is not None
         hit = None
+        last = None   # where in the task (local s) the last start tried touched
         while not back:
             task_fn = BoomTimeline(q_rest, tasks[k].at(s)).evaluate
             budget -= 1
-            hit = clock.first_touch(name, task_fn, s, s + tasks[k].duration)
+            dur = tasks[k].duration
+            hit = None
+            if last is not None:
+                # Where the last start touched is where a start a little later most likely
+                # touches too: a touch there rejects this start without the whole scan (a
+                # start is accepted only after the whole task is checked clear).
+                hit = clock.first_touch(name, task_fn, s + max(0.0, last - HIT_WINDOW_S),
+                                        s + min(dur, last + HIT_WINDOW_S))
+            if hit is None:
+                hit = clock.first_touch(name, task_fn, s, s + dur)
             if hit is None:
                 break
+            last = hit - s
             if (s >= others_end and s > rest_from) or budget <= 0:
                 break
             step = max(wait_step, 0.1 * (s - rest_from))
             s_next = min(s + step, others_end) if s < others_end else s + step
-            if clock.first_touch(name, rest_fn, s, s_next) is not None:
+            if clock.first_touch(name, rest_fn, s, s_next, still_at=q_rest) is not None:
                 back = True
                 break
             s = s_next
@@ -774,16 +819,18 @@ def round_clearance(timelines: Mapping[str, BoomTimeline],
 
         def ends(t):
             return [geometry[n].ends(timelines[n].evaluate(t)) for n in names]
-        t = check_times(a, b, ends)
-        E = ends(t)
+        t, E = sample_ends(a, b, ends)
         count += len(t) - (1 if a > 0 else 0)
         for e in E:
             if len(t) > 1:
                 step = max(step, float(np.linalg.norm(np.diff(e, axis=0), axis=-1).max()))
         for i in range(len(names)):
             for j in range(i + 1, len(names)):
-                d = pair_clearance(E[i], geometry[names[i]].radius, E[j],
-                                   geometry[names[j]].radius)
+                ri, rj = geometry[names[i]].radius, geometry[names[j]].radius
+                # An upper bound of this stretch's least distance (exact at every 64th
+                # instant): below it the distance is computed exactly, so the least is.
+                cap = min(best, float(pair_clearance(E[i][::64], ri, E[j][::64], rj).min()))
+                d = pair_clearance(E[i], ri, E[j], rj, below=cap + 1e-6)
                 m = int(np.argmin(d))
                 if d[m] < best:
                     best, pair, when = float(d[m]), f"{names[i]}-{names[j]}", float(t[m])

@@ -36,6 +36,8 @@ __all__ = [
     "BoomTimeline",
     "BoomGeometry",
     "check_times",
+    "sample_ends",
+    "refine",
     "pair_clearance",
 ]
 
@@ -49,6 +51,9 @@ REFINE_MM = 4.0
 PHASE_KINDS = ("wait", "transfer", "collar", "drill", "retract")
 #: Instants evaluated at once in the distance computation.
 CHUNK = 4096
+#: Instants per block of the pruned distance (``pair_clearance`` with ``below``): the box
+#: round each capsule's end points over a block bounds its distance to another's.
+BLOCK = 32
 
 
 @dataclass(frozen=True, eq=False)
@@ -159,10 +164,99 @@ def check_times(t0: float, t1: float, ends: Callable[[np.ndarray], Sequence[np.n
     return np.sort(np.concatenate(pieces + [t[1:]]))
 
 
-def pair_clearance(Ea: np.ndarray, ra: np.ndarray, Eb: np.ndarray, rb: np.ndarray
-                   ) -> np.ndarray:
+def sample_ends(t0: float, t1: float, ends: Callable[[np.ndarray], Sequence[np.ndarray]],
+                dt: float = CHECK_DT, step_mm: float = REFINE_MM
+                ) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The instants of ``check_times`` and the booms' capsule end points at them, each boom
+    evaluated once per instant (the refined instants alone are evaluated a second time):
+    ``(t (S,), [(S, L, 2, 3), ...])``."""
+    if t1 <= t0:
+        t = np.array([t0])
+        return t, list(ends(t))
+    n = max(1, int(math.ceil((t1 - t0) / dt - 1e-9)))
+    t = np.linspace(t0, t1, n + 1)
+    return refine(t, list(ends(t)), ends, step_mm)
+
+
+def refine(t: np.ndarray, E: list[np.ndarray], ends: Callable[[np.ndarray], Sequence[np.ndarray]],
+           step_mm: float = REFINE_MM) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Instants ``t (S,)`` (increasing) with the booms' end points ``E`` at them, refined
+    wherever some end point moves more than ``step_mm`` between two: the added instants are
+    evaluated by ``ends`` and merged in time order."""
+    if len(t) < 2:
+        return t, E
+    n = len(t) - 1
+    move = np.zeros(n)
+    for e in E:
+        d = np.linalg.norm(np.diff(e, axis=0), axis=-1).reshape(n, -1).max(axis=1)
+        np.maximum(move, d, out=move)
+    parts = np.maximum(1, np.ceil(move / step_mm)).astype(int)
+    if np.all(parts == 1):
+        return t, E
+    extra = np.concatenate([np.linspace(t[i], t[i + 1], parts[i] + 1)[1:-1]
+                            for i in np.flatnonzero(parts > 1)])
+    Ex = ends(extra)
+    order = np.argsort(np.concatenate([t, extra]), kind="stable")
+    return (np.concatenate([t, extra])[order],
+            [np.concatenate([e, x])[order] for e, x in zip(E, Ex, strict=True)])
+
+
+def _blocks(E: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Boxes round each capsule's end points over blocks of ``size`` instants:
+    ``E (S, L, 2, 3)`` -> ``lo``, ``hi`` ``(nb, L, 3)`` (the last block may be short)."""
+    S = len(E)
+    lo = np.minimum(E[:, :, 0], E[:, :, 1])
+    hi = np.maximum(E[:, :, 0], E[:, :, 1])
+    full = (S // size) * size
+    L = E.shape[1]
+    blo = lo[:full].reshape(-1, size, L, 3).min(axis=1)
+    bhi = hi[:full].reshape(-1, size, L, 3).max(axis=1)
+    if full < S:
+        blo = np.concatenate([blo, lo[full:].min(axis=0)[None]])
+        bhi = np.concatenate([bhi, hi[full:].max(axis=0)[None]])
+    return blo, bhi
+
+
+def pair_clearance(Ea: np.ndarray, ra: np.ndarray, Eb: np.ndarray, rb: np.ndarray,
+                   below: float | None = None) -> np.ndarray:
     """Least signed surface distance between two booms' capsules at each instant:
-    ``Ea (S, La, 2, 3)``, ``Eb (S, Lb, 2, 3)`` -> ``(S,)`` mm (negative: they overlap)."""
+    ``Ea (S, La, 2, 3)``, ``Eb (S, Lb, 2, 3)`` -> ``(S,)`` mm (negative: they overlap).
+
+    With ``below``: exact wherever the distance is under ``below``, and elsewhere a lower
+    bound that is itself at least ``below``. Per block of ``BLOCK`` instants the box round
+    each capsule's end points holds the capsule at every instant of the block (a capsule's
+    axis is the convex hull of its ends), so the distance of two boxes less both radii
+    bounds the capsules' distance from below; the exact segment-segment distance is
+    computed only for the pairs of capsules and blocks whose bound is under ``below``."""
+    S = len(Ea)
+    if below is None or not math.isfinite(below):
+        return _exact(Ea, ra, Eb, rb)
+    lo_a, hi_a = _blocks(Ea, BLOCK)
+    lo_b, hi_b = _blocks(Eb, BLOCK)
+    gap = np.maximum(np.maximum(lo_b[:, None] - hi_a[:, :, None],
+                                lo_a[:, :, None] - hi_b[:, None]), 0.0)
+    bound = np.linalg.norm(gap, axis=-1) - ra[None, :, None] - rb[None, None, :]  # (nb,La,Lb)
+    near = bound < below
+    far = np.where(near, np.inf, bound).reshape(len(bound), -1).min(axis=1)
+    out = np.repeat(far, BLOCK)[:S]
+    blk, i, j = np.nonzero(near)
+    if not len(blk):
+        return out
+    steps = np.arange(BLOCK)
+    per = max(1, CHUNK // BLOCK)
+    for c0 in range(0, len(blk), per):
+        kb, ki, kj = blk[c0:c0 + per], i[c0:c0 + per], j[c0:c0 + per]
+        s = np.minimum(kb[:, None] * BLOCK + steps[None], S - 1)       # (m, BLOCK)
+        A, B = Ea[s, ki[:, None]], Eb[s, kj[:, None]]                  # (m, BLOCK, 2, 3)
+        d, _, _ = segment_segment_distance(A[..., 0, :], A[..., 1, :], B[..., 0, :],
+                                           B[..., 1, :])
+        d = d - ra[ki][:, None] - rb[kj][:, None]
+        np.minimum.at(out, s.reshape(-1), d.reshape(-1))
+    return out
+
+
+def _exact(Ea: np.ndarray, ra: np.ndarray, Eb: np.ndarray, rb: np.ndarray) -> np.ndarray:
+    """``pair_clearance`` computed exactly for every pair of capsules at every instant."""
     S = len(Ea)
     out = np.empty(S)
     for s0 in range(0, S, CHUNK):

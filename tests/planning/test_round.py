@@ -14,7 +14,7 @@ from kinematics.fk import fk, fk_frames
 from kinematics.rigs import builtin_rig
 from planning.collision import CollisionScene
 from planning.cycles.round import REASONS, RoundOptions, hole_poses, plan_round
-from planning.cycles.round_timeline import BoomTimeline, Phase
+from planning.cycles.round_timeline import BoomTimeline, Phase, pair_clearance
 
 RADII = np.array([300.0, 250.0, 200.0, 250.0, 250.0, 250.0, 200.0])
 COLLARING_S, RETRACT_S, RATE = 3.0, 8.0, 3.0   # s, s, m/min
@@ -131,6 +131,32 @@ def test_the_independent_segment_distance_agrees_with_simple_cases():
         pytest.approx(math.hypot(2, 4))
     assert _segment_distance(P0, P1, np.array([0.0, 1, 0]), np.array([10.0, 1, 0])) == \
         pytest.approx(1.0)
+
+
+def test_the_pruned_boom_distance_is_exact_below_its_limit_and_a_bound_above():
+    """Two sets of capsules moving past each other (one crossing the other, one far off):
+    with ``below`` the distance is the independent closed form wherever that is under
+    ``below`` and at least ``below`` elsewhere; without it, exact everywhere."""
+    rng = np.random.default_rng(3)
+    S, L = 203, 4                                   # not a whole number of blocks
+    t = np.linspace(0.0, 1.0, S)[:, None, None, None]
+    base_a = rng.uniform(-500, 500, (1, L, 2, 3))
+    base_b = rng.uniform(-500, 500, (1, L, 2, 3))
+    Ea = base_a + t * np.array([3000.0, 0.0, 0.0]) - np.array([1500.0, 0.0, 0.0])
+    Eb = np.repeat(base_b, S, axis=0)
+    Eb[:, 2:] += np.array([0.0, 8000.0, 0.0])       # two capsules far off all the time
+    ra, rb = rng.uniform(50, 200, L), rng.uniform(50, 200, L)
+    d = _segment_distance(Ea[:, :, None, 0], Ea[:, :, None, 1], Eb[:, None, :, 0],
+                          Eb[:, None, :, 1]) - ra[None, :, None] - rb[None, None, :]
+    truth = d.reshape(S, -1).min(axis=1)
+    assert truth.min() < 0 < truth.max()            # they overlap at some instants only
+    np.testing.assert_allclose(pair_clearance(Ea, ra, Eb, rb), truth, atol=1e-6)
+    for below in (-50.0, 0.0, 300.0, float(np.median(truth)), truth.max() + 1.0):
+        got = pair_clearance(Ea, ra, Eb, rb, below=below)
+        under = truth < below
+        np.testing.assert_allclose(got[under], truth[under], atol=1e-6)
+        assert np.all(got[~under] >= below - 1e-9)
+        assert np.all(got <= truth + 1e-6)           # a lower bound everywhere
 
 
 # ---- reach ------------------------------------------------------------------------------------
