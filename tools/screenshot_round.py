@@ -3,12 +3,11 @@ once, caught mid-round in the viewer, drawn by headless Chromium.
 
 Nine holes of the sample face (``examples/drill_face.csv``: the upper half of the contour
 and two in the middle) are planned by the ``round`` job kind run in this
-process as a worker runs it; the viewer (viser, on a free loopback port, without the
-environment map so nothing is fetched) shows its result at the moment when the most booms are
+process as a worker runs it; the viewer shows its result at the moment when the most booms are
 drilling (the earliest such moment past ``--share`` of the round), seen from behind the booms
 (a little to the side and above) towards the face. Holes are grey until drilled, in their
-boom's colour while drilled, dark once done. Playwright drives Debian's Chromium
-(``tests/web/chromium_setup.py``'s flags) to take the picture.
+boom's colour while drilled, dark once done. The viewer and Chromium steps are
+``tools/screenshots.py``'s.
 
     .venv/bin/python tools/screenshot_round.py                 # docs/viewer_round.png
     .venv/bin/python tools/screenshot_round.py --out /tmp/x.png --share 0.3
@@ -18,14 +17,14 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
-import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from screenshots import run_job, screenshot  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The holes of the sample face drawn: its upper half (the viewer's ground grid lies at the
@@ -36,9 +35,6 @@ HOLES = ("H03", "H04", "H05", "H06", "H07", "H08", "H09", "H19", "H21")
 #: face, so each hole shows its length from collar to toe.
 CAMERA = (5.5, -5.0, 4.0)
 LOOK_AT = (10.5, 0.0, 1.0)
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--disable-quic",
-                 "--no-first-run"]
 
 
 def round_params() -> dict:
@@ -53,14 +49,7 @@ def round_params() -> dict:
 
 def run_round() -> tuple[dict, dict]:
     """The round's stored params and result, planned as a worker plans a ``round`` job."""
-    from app.jobs.catalog import KINDS
-    from app.jobs.kinds import JobPayload, execute
-
-    checked = KINDS["round"].load_params(round_params())
-    payload = JobPayload(params=checked.model_dump(mode="json"))
-    result = json.loads(execute("round", payload.model_dump(mode="json"),
-                                lambda fraction, message: None))
-    return checked.model_dump(mode="json"), result
+    return run_job("round", round_params())
 
 
 def busiest_moment(result: dict, share: float) -> float:
@@ -85,66 +74,18 @@ def main(argv: list[str] | None = None) -> int:
                         help="look for the busiest moment from this share of the round on")
     args = parser.parse_args(argv)
 
-    from playwright.sync_api import sync_playwright
-
-    from app.config import Settings
-    from app.main import create_app
-    from kinematics.library import builtin_model
-    from web.results import plan_from_result
-    from web.viewer import Viewer
-
-    chromium = shutil.which("chromium") or "/usr/bin/chromium"
     started = time.monotonic()
     params, result = run_round()
     planned = time.monotonic() - started
     t = busiest_moment(result, args.share)
-    with tempfile.TemporaryDirectory() as data:
-        app = create_app(Settings(no_viewer=True, data_dir=Path(data), workers=1))
-        viewer = Viewer.start("127.0.0.1", 0, app.state, environment_map=False)
-        try:
-            viewer.show_plan(plan_from_result("round", params, result, job="round",
-                                              models=builtin_model, rigs=app.state.registry.rigs))
-            viewer.set_time(t)
-            viewer.gizmo.visible = False
-            with sync_playwright() as p:
-                browser = p.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS)
-                page = browser.new_page(viewport={"width": args.width,
-                                                  "height": args.height})
-                page.set_default_timeout(60_000)
-                page.goto(f"http://127.0.0.1:{viewer.port}")
-                page.bring_to_front()
-                page.get_by_text("Connected").wait_for()
-                page.wait_for_function(
-                    "() => window.__viserSceneTree !== undefined && "
-                    "'/plan/round/holes' in window.__viserSceneTree.getState()")
-                page.wait_for_function(
-                    "() => { const c = document.querySelector('canvas');"
-                    " return c && getComputedStyle(c).opacity === '1'; }")
-                time.sleep(1.0)                # the viewer frames the page's canvas first
-                for client in viewer.server.get_clients().values():
-                    client.camera.position = CAMERA
-                    client.camera.look_at = LOOK_AT
-                # The panel shows the plan's text: the other folders folded.
-                for title in ("Joints of tunnel_jumbo-left", "IK: drag the gizmo at the tool",
-                              "Workspace"):
-                    found = page.get_by_text(title, exact=True)
-                    if found.count():
-                        found.first.click()
-                page.evaluate(
-                    """() => document.querySelectorAll('.mantine-Notification-root, '
-                       + '.mantine-Notifications-notification').forEach(e => e.remove())""")
-                time.sleep(2.0)                # let the frame render
-                out = Path(args.out)
-                out.parent.mkdir(parents=True, exist_ok=True)
-                page.screenshot(path=str(out))
-                browser.close()
-            drilling = [h["id"] + " (" + h["boom"] + ")" for h in result["holes"]
-                        if h["start_s"] <= t < h["end_s"]]
-            print(f"{args.out}: {len(result['holes'])} holes planned in {planned:.1f} s; "
-                  f"t = {t:.1f} s of {result['cycle_time_s']:.1f} s, drilling "
-                  f"{', '.join(drilling)}")
-        finally:
-            viewer.stop()
+    screenshot("round", params, result, args.out, job="round", camera=CAMERA,
+               look_at=LOOK_AT, wait_node="/plan/round/holes", time_s=t, width=args.width,
+               height=args.height)
+    drilling = [h["id"] + " (" + h["boom"] + ")" for h in result["holes"]
+                if h["start_s"] <= t < h["end_s"]]
+    print(f"{args.out}: {len(result['holes'])} holes planned in {planned:.1f} s; "
+          f"t = {t:.1f} s of {result['cycle_time_s']:.1f} s, drilling "
+          f"{', '.join(drilling)}")
     return 0
 
 
