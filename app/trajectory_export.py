@@ -197,40 +197,35 @@ def _tracking(params: Mapping[str, Any], result: Mapping[str, Any], lookup: Look
                                         or params.get("robot"), lookup, "result")})
 
 
-def _multiarm(params: Mapping[str, Any], result: Mapping[str, Any], lookup: Lookup) -> Tracks:
-    """``multiarm``: each arm's joints ``arms.<arm>.q`` at the plan's ``t``, the arm's model
-    from the built-in rig."""
+def _rig_tracks(params: Mapping[str, Any], result: Mapping[str, Any], lookup: Lookup,
+                arms: Mapping[str, Any], samples: Callable[[Mapping[str, Any]], dict],
+                what: str) -> Tracks:
+    """One track per arm (``what``: "arm" or "boom") of the job's built-in rig: ``samples``
+    gives an arm's ``{"t", "q"}`` from its entry in ``arms``."""
     rig_id = result.get("rig") or params.get("rig", "tunnel_jumbo")
     try:
         rig = builtin_rig(rig_id)
     except KeyError:
         raise ExportError(["path", "job_id"], f"unknown rig '{rig_id}'") from None
     items: dict[Any, Track | str] = {}
-    for arm, data in (result.get("arms") or {}).items():
+    for arm, data in arms.items():
         model = rig.arms.get(arm)
         if model is None:
-            raise ExportError(["path", "job_id"], f"rig '{rig_id}' has no arm '{arm}'")
-        items[arm] = _sampled({"t": result.get("t"), "q": data.get("q")}, model, None,
-                              model.id, lookup, f"arms.{arm}")
+            raise ExportError(["path", "job_id"], f"rig '{rig_id}' has no {what} '{arm}'")
+        items[arm] = _sampled(samples(data), model, None, model.id, lookup, f"{what}s.{arm}")
     return Tracks("arm", items)
+
+
+def _multiarm(params: Mapping[str, Any], result: Mapping[str, Any], lookup: Lookup) -> Tracks:
+    """``multiarm``: each arm's joints ``arms.<arm>.q`` at the plan's ``t``."""
+    return _rig_tracks(params, result, lookup, result.get("arms") or {},
+                       lambda data: {"t": result.get("t"), "q": data.get("q")}, "arm")
 
 
 def _round(params: Mapping[str, Any], result: Mapping[str, Any], lookup: Lookup) -> Tracks:
-    """``round``: each boom's own timed joints ``booms.<boom>.t``, ``.q``, the boom's model
-    from the built-in rig."""
-    rig_id = result.get("rig") or params.get("rig", "tunnel_jumbo")
-    try:
-        rig = builtin_rig(rig_id)
-    except KeyError:
-        raise ExportError(["path", "job_id"], f"unknown rig '{rig_id}'") from None
-    items: dict[Any, Track | str] = {}
-    for boom, data in (result.get("booms") or {}).items():
-        model = rig.arms.get(boom)
-        if model is None:
-            raise ExportError(["path", "job_id"], f"rig '{rig_id}' has no boom '{boom}'")
-        items[boom] = _sampled({"t": data.get("t"), "q": data.get("q")}, model, None,
-                               model.id, lookup, f"booms.{boom}")
-    return Tracks("arm", items)
+    """``round``: each boom's own timed joints ``booms.<boom>.t``, ``.q``."""
+    return _rig_tracks(params, result, lookup, result.get("booms") or {},
+                       lambda data: {"t": data.get("t"), "q": data.get("q")}, "boom")
 
 
 #: The kinds whose results carry timed joint samples, and how to read them.
