@@ -547,6 +547,8 @@ class Viewer:
         lo, hi = self.content_bounds()
         reach = float(np.abs(np.concatenate([lo[:2], hi[:2]])).max()) * MM_TO_M
         self._grid.width = self._grid.height = float(max(4.0, 2.0 * math.ceil(reach) + 2.0))
+        # The ground under everything drawn (a face's holes reach below a rig's frame).
+        self._grid.position = (0.0, 0.0, min(0.0, float(lo[2]) * MM_TO_M))
         for client in self.server.get_clients().values():
             view = _client_view(client)
             if view is not None:

@@ -22,7 +22,15 @@ from kinematics.fk import fk, fk_frames
 from kinematics.library import BUILTIN_IDS, builtin_model
 from kinematics.model import RobotModel
 from web.gui import from_display, to_display
-from web.results import DEFAULT_SECONDS, DRAWERS, drawable, drawer, plan_from_result
+from web.results import (
+    DEFAULT_SECONDS,
+    DRAWERS,
+    Plan,
+    Spheres,
+    drawable,
+    drawer,
+    plan_from_result,
+)
 from web.scene import (
     MM_TO_M,
     RobotNodes,
@@ -251,6 +259,11 @@ def test_the_rig_is_drawn_as_three_arms(api):
     v.select("glt_palletizer")
     look = np.asarray(v.server.initial_camera.look_at) - v.server.initial_camera.position
     assert abs(look[1]) / np.linalg.norm(look) > 0.7
+    # The ground lies under everything drawn, at z = 0 or lower.
+    assert v._grid.position[2] == 0.0
+    v.show_plan(Plan("low", "sequence", spheres=(Spheres("holes", np.array([[9000.0, 0, -1300]]),
+                                                         np.full(1, 50.0), (250, 200, 30)),)))
+    assert v._grid.position[2] == pytest.approx(-1.35)
     # The IK gizmo is a tenth of the arm's reach, translucent: the tool shows under it.
     # (The palletizer reaches 1.9 m: README's workspace.)
     assert 0.1 <= v.gizmo.scale <= 0.3 and v.gizmo.opacity < 1.0
