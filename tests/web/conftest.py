@@ -108,3 +108,18 @@ def api(tmp_path):
     app.state.viewer = Viewer.start("127.0.0.1", 0, app.state, environment_map=False)
     yield app
     app.state.viewer.stop()
+
+
+@pytest.fixture(scope="module")
+def viewer(tmp_path_factory):
+    """A viewer on port 0 over an application without processes started (one per test
+    module; a module that needs another defines its own ``viewer``)."""
+    from app.config import Settings
+    from app.main import create_app
+    from web.viewer import Viewer
+
+    app = create_app(Settings(no_viewer=True, data_dir=tmp_path_factory.mktemp("data"),
+                              workers=1))
+    v = Viewer.start("127.0.0.1", 0, app.state, environment_map=False)
+    yield v
+    v.stop()

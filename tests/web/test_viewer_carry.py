@@ -91,20 +91,6 @@ def job() -> tuple[dict, dict]:
     return checked.model_dump(mode="json"), result
 
 
-@pytest.fixture(scope="module")
-def viewer(tmp_path_factory):
-    """A viewer on port 0 over an application without processes started."""
-    from app.config import Settings
-    from app.main import create_app
-    from web.viewer import Viewer
-
-    app = create_app(Settings(no_viewer=True, data_dir=tmp_path_factory.mktemp("data"),
-                              workers=1))
-    v = Viewer.start("127.0.0.1", 0, app.state, environment_map=False)
-    yield v
-    v.stop()
-
-
 @pytest.fixture
 def shown(viewer, job):
     """The viewer showing the task."""

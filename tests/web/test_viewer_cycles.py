@@ -159,20 +159,6 @@ def piles_job() -> tuple[dict, dict]:
     return params.model_dump(mode="json"), result
 
 
-@pytest.fixture(scope="module")
-def viewer(tmp_path_factory):
-    """A viewer on port 0 over an application without processes started."""
-    from app.config import Settings
-    from app.main import create_app
-    from web.viewer import Viewer
-
-    app = create_app(Settings(no_viewer=True, data_dir=tmp_path_factory.mktemp("data"),
-                              workers=1))
-    v = Viewer.start("127.0.0.1", 0, app.state, environment_map=False)
-    yield v
-    v.stop()
-
-
 def _draw(kind: str, params: dict, result: dict):
     return plan_from_result(kind, params, result, job="j", models=builtin_model, rigs=RIGS)
 
