@@ -237,13 +237,24 @@ def live_server(tmp_path):
     while not server.started and time.monotonic() < deadline:
         time.sleep(0.02)
     port = server.servers[0].sockets[0].getsockname()[1]
+    # One whole request first: the first answer of a fresh app imports and builds what the
+    # routes need, which on a loaded machine can hold the event loop for seconds and would
+    # be timed as the timeout under test.
+    import http.client
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=60)
+    conn.request("POST", "/robots/pile_driver/fk", body=json.dumps({"q": [0.0] * 6}),
+                 headers={"content-type": "application/json"})
+    warm = conn.getresponse()
+    assert warm.status == 200, warm.read()
+    conn.close()
     yield port
     server.should_exit = True
     thread.join(10)
 
 
 def _closed_after(sock: socket.socket) -> float:
-    """Seconds until the server closes ``sock`` (reads until EOF)."""
+    """Seconds until the server closes ``sock`` (reads until EOF); a connection the server
+    never closes raises ``socket.timeout`` after 10 s."""
     start = time.monotonic()
     sock.settimeout(10)
     while sock.recv(4096):
@@ -267,7 +278,9 @@ def test_a_body_that_stops_half_way_is_cut_off(live_server):
     with socket.create_connection(("127.0.0.1", live_server)) as s:
         s.sendall(b"POST /robots/pile_driver/fk HTTP/1.1\r\nHost: 127.0.0.1\r\n"
                   b"Content-Type: application/json\r\nContent-Length: 100\r\n\r\n{\"q\":")
-        assert 1.0 < _closed_after(s) < 4.0
+        # The idle timer is 1.5 s; the upper bound leaves a loaded machine room (a connection
+        # never cut raises after 10 s).
+        assert 1.0 < _closed_after(s) < 8.0
 
 
 @pytest.mark.slow
