@@ -11,7 +11,7 @@ Joint values are shown in degrees for revolute joints and millimetres for prisma
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -19,8 +19,9 @@ import numpy as np
 from kinematics.model import RobotModel
 from kinematics.workspace import MAX_SAMPLES
 
+from .cycles import CYCLE_KINDS, StoredPlan
 from .scene import CylinderDrawing
-from .text import plain
+from .text import code, plain
 
 __all__ = [
     "ControlPanel",
@@ -52,6 +53,12 @@ GOAL_HINT = ("Keep the arm's configuration as the goal of the next plan (move it
              "sliders or the gizmo first)")
 PLAN_HINT = ("Plan a collision-free motion from the arm's configuration to the kept goal, in "
              "the scene shown (a motion job); the answer plays at once")
+#: What each work-cycle button starts (a whole job of its kind on the robot's stored plan).
+CYCLE_HINTS = {
+    "round": "Plan the jumbo's whole drilling round on its stored drill plan (a round job)",
+    "pallet": "Plan the palletizing cycle of the robot's stored pallet (a pallet job)",
+    "piles": "Plan the pile driver's stored pile plan: set-ups, order, times (a piles job)",
+}
 NO_GOAL = ("Move the arm to a goal, press **Set goal here**, move it to the start, then "
            "**Plan**.")
 
@@ -116,6 +123,13 @@ class ControlPanel:
             self.run_workspace = gui.add_button("Run workspace", icon=None)
             self.progress = gui.add_progress_bar(0.0, visible=False, animated=True)
             self.workspace = gui.add_markdown("")
+        with gui.add_folder("Work cycle", order=6.5):
+            self.cycle_plan = gui.add_markdown("")
+            self.run_cycle = {kind: gui.add_button(f"Run {kind}", visible=False,
+                                                   hint=CYCLE_HINTS[kind])
+                              for kind in CYCLE_KINDS}
+            self.cycle_progress = gui.add_progress_bar(0.0, visible=False, animated=True)
+            self.cycle = gui.add_markdown("")
         with gui.add_folder("Plan", order=7):
             self.set_goal = gui.add_button("Set goal here", hint=GOAL_HINT)
             self.run_plan = gui.add_button("Plan", disabled=True, hint=PLAN_HINT)
@@ -166,6 +180,22 @@ class ControlPanel:
         self.collision_info.visible = bool(text)
         if self.collision_info.content != text:
             self.collision_info.content = text
+
+    def show_cycle_plan(self, key: str, plan: StoredPlan | None,
+                        plans: Mapping[str, StoredPlan]) -> None:
+        """The work-cycle folder for robot or rig ``key``: the button of its stored ``plan``
+        (none without one) and what the plan is, or which robots have one."""
+        for kind, button in self.run_cycle.items():
+            button.visible = plan is not None and plan.kind == kind
+        if plan is not None:
+            text = f"Stored plan of {code(key)}: {plain(plan.title)}."
+        elif plans:
+            have = ", ".join(f"{code(k)} ({plain(p.kind)})" for k, p in plans.items())
+            text = f"No stored plan for {code(key)}. Work cycles run for {have}."
+        else:
+            text = "No stored plans on this service."
+        if self.cycle_plan.content != text:
+            self.cycle_plan.content = text
 
     def show_cylinders(self, cylinders: Sequence[CylinderDrawing]) -> None:
         self.cylinders_folder.visible = bool(cylinders)

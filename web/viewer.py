@@ -15,6 +15,11 @@ What a browser gets (http://host:port):
   coloured by height with the extents (one such job at a time, at most ``MAX_GUI_SAMPLES``,
   the API's synchronous cap; jobs are submitted to the same manager, with the same checks, as
   ``POST /jobs``);
+* a **Run round**, **Run pallet** or **Run piles** button where the robot or rig shown has a
+  stored plan (``web.cycles``: the product's example drill plan for ``tunnel_jumbo``, pallet
+  for ``glt_palletizer``, pile plan for ``pile_driver``; ``Viewer.start(..., cycles=...)``
+  hands others): it submits that whole-job work cycle the same way, shows its progress, then
+  draws its answer (one such job at a time; a refusal says why);
 * finished jobs shown by ``POST /viewer/show {"job": id}`` (``web.results``), with a time
   slider and play/pause when the plan moves arms (a batch of motion problems: one at a time,
   ``"problem": k``), and the answer of ``POST /robots/{id}/motion`` shown by
@@ -48,7 +53,7 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -62,6 +67,7 @@ from kinematics.model import RobotModel
 
 from .camera import RIG_VIEW_DIRECTION, VIEW_DIRECTION, View, frame_bounds, union_bounds
 from .collision import CollisionSpheres
+from .cycles import StoredPlan, check_plans, stored_plans
 from .gate import Gate, lock_websockets_server, new_secret
 from .gui import (
     MAX_GUI_SAMPLES,
@@ -130,7 +136,7 @@ class Viewer:
     """A running viser server and what it shows. Thread-safe."""
 
     def __init__(self, server: Any, state: ServiceState, *, environment_map: bool = True,
-                 ) -> None:
+                 cycles: Mapping[str, StoredPlan] | None = None) -> None:
         self.server = server
         self.registry = state.registry
         self.jobs = state.jobs
@@ -153,6 +159,9 @@ class Viewer:
         self._workspace_job: str | None = None
         self._goal: tuple[str, str, np.ndarray] | None = None  # (robot or rig, arm, q)
         self._motion_job: str | None = None
+        # The stored plans of the work-cycle buttons (``web.cycles``) and the viewer's job.
+        self._cycles = check_plans(stored_plans() if cycles is None else cycles)
+        self._cycle_job: str | None = None
         self.gate: Gate | None = None
         self._options: tuple[str, ...] = ()
         self.current: dict | None = None
@@ -192,7 +201,7 @@ class Viewer:
     @classmethod
     def start(cls, host: str, port: int, state: ServiceState, *, environment_map: bool = True,
               api_key: str | None = None, allowed_origins: str | Sequence[str] | None = None,
-              ) -> Viewer:
+              cycles: Mapping[str, StoredPlan] | None = None) -> Viewer:
         """Serve the viewer on ``host:port`` (0: any free port, see ``port``).
 
         viser listens on an internal loopback port that answers only the front
@@ -200,7 +209,8 @@ class Viewer:
         (``/?key=<key>`` once, then a cookie). ``allowed_origins`` (a list or a
         comma-separated string; default: the viewer's own addresses) are the pages that may
         open it. Without a key the viewer is open to any client that reaches the port, but
-        still not to other sites' pages."""
+        still not to other sites' pages. ``cycles``: the stored plans of the work-cycle
+        buttons by robot or rig id (default ``web.cycles.stored_plans()``)."""
         import viser
 
         # No label: the panel title then shows the connection state ("Connected"). viser
@@ -218,7 +228,7 @@ class Viewer:
             server.stop()
             raise
         try:
-            viewer = cls(server, state, environment_map=environment_map)
+            viewer = cls(server, state, environment_map=environment_map, cycles=cycles)
         except BaseException:
             gate.stop()
             server.stop()
@@ -277,6 +287,7 @@ class Viewer:
                 self.gui.run_plan.disabled = True
                 self.gui.motion.content = NO_GOAL
             self._key = key
+            self.gui.show_cycle_plan(key, self._cycles.get(key), self._cycles)
             self._arms = {}
             for arm, model in models.items():
                 root = f"{ROBOT_ROOT}/{key}" + (f"/{arm}" if arm else "")
@@ -449,6 +460,9 @@ class Viewer:
         @g.run_workspace.on_click
         def _(event: Any) -> None:
             self.run_workspace(g.samples.value)
+
+        for kind, button in g.run_cycle.items():
+            button.on_click(lambda event, kind=kind: self.run_cycle(kind))
 
         @g.set_goal.on_click
         def _(event: Any) -> None:
@@ -744,6 +758,89 @@ class Viewer:
             if self._plan is not None:
                 self.gui.workspace.content = self._plan.summary
 
+    # ---- work cycles ----------------------------------------------------------------------
+    @property
+    def cycles(self) -> dict[str, StoredPlan]:
+        """The stored plans of the work-cycle buttons, by robot or rig id."""
+        return dict(self._cycles)
+
+    def run_cycle(self, kind: str | None = None) -> str | None:
+        """Submit the work-cycle job of the stored plan of the robot or rig shown (``kind``:
+        the button pressed, which must be that plan's); the tick loop follows it and draws its
+        answer. Returns the job id, or None when it is not started (the panel says why): the
+        robot shown has no stored plan (of that kind), a work-cycle job the viewer started is
+        still queued or running (one at a time, whichever tab asked), the plan cannot be
+        built, or the job manager refused it (the field at fault, a full queue)."""
+        with self._lock:
+            plan = self._cycles.get(self._key)
+            if plan is None or (kind is not None and plan.kind != kind):
+                what = "stored plan" if kind is None else f"stored {plain(kind)} plan"
+                self.gui.cycle.content = (f"**Not started**: {code(self._key)} has no "
+                                          f"{what}.")
+                return None
+            busy = self._in_flight(self._cycle_job)
+            if busy is not None:
+                self.gui.cycle.content = (
+                    f"**Not started**: work-cycle job {code(busy)} is still running; wait "
+                    "for it (one work cycle at a time from the viewer).")
+                return None
+            try:
+                params = plan.params()
+            except Exception as exc:  # noqa: BLE001 - a builder's failure, said in the panel
+                self.gui.cycle.content = (f"**Not started**: the stored plan cannot be "
+                                          f"built: {plain(exc)}")
+                return None
+            # Submitted under the lock: two clicks cannot both pass the check above.
+            try:
+                job = self.jobs.submit(plan.kind, params)
+            except Exception as exc:  # JobParamsError (naming the field), QueueFullError
+                loc = getattr(exc, "loc", None)
+                where = f"{code('.'.join(str(p) for p in loc))}: " if loc else ""
+                self.gui.cycle.content = f"**Not started**: {where}{plain(exc)}"
+                return None
+            self._cycle_job = job.id
+            self.gui.cycle_progress.value = 0.0
+            self.gui.cycle_progress.visible = True
+            self.gui.cycle.content = f"Job {code(job.id)} ({plain(plan.kind)}): queued"
+            return job.id
+
+    def _poll_cycle(self) -> None:
+        """Follow the viewer's work-cycle job: its status and progress in the panel, its
+        answer drawn once it succeeds, or why it did not."""
+        with self._lock:
+            job_id = self._cycle_job
+        if job_id is None:
+            return
+        read, job = self._look_up(job_id, self.gui.cycle)
+        if not read:
+            return
+        with self._lock:
+            if job is None or job.status in ("failed", "cancelled"):
+                why = "vanished" if job is None else f"{job.status}: {job.error or ''}"
+                self.gui.cycle.content = f"**Not planned**: job {code(job_id)} {plain(why)}"
+                self.gui.cycle_progress.visible = False
+                self._cycle_job = None
+                return
+            self.gui.cycle_progress.value = float(np.clip(100.0 * job.progress, 0.0, 100.0))
+            if job.status != "succeeded":
+                msg = f" ({plain(job.message)})" if job.message else ""
+                self.gui.cycle.content = (f"Job {code(job_id)} ({plain(job.kind)}): "
+                                          f"{plain(job.status)}, {100 * job.progress:.0f} %"
+                                          f"{msg}")
+                return
+            self._cycle_job = None
+            self.gui.cycle_progress.visible = False
+        try:
+            self.show_job(job_id)
+        except (KeyError, ValueError, JobNotReady) as exc:
+            with self._lock:
+                self.gui.cycle.content = f"Job {code(job_id)} cannot be shown: {plain(exc)}"
+            return
+        with self._lock:
+            play = " Play runs it." if self._plan is not None and self._plan.motions else ""
+            self.gui.cycle.content = (f"Planned: job {code(job_id)} ({plain(job.kind)}), "
+                                      f"shown under **Plan**.{play}")
+
     # ---- planning from the viewer ---------------------------------------------------------
     def set_goal(self) -> np.ndarray:
         """Keep the active arm's configuration as the goal of the next ``plan_to_goal``."""
@@ -990,6 +1087,7 @@ class Viewer:
                     last_poll = now
                     self._poll_workspace()
                     self._poll_motion()
+                    self._poll_cycle()
                 if now - last_refresh >= ROBOTS_REFRESH_S:
                     last_refresh = now
                     self.refresh_robots()
