@@ -518,6 +518,20 @@ def state_bounds(C, prismatic, offset, body, X, ends, w, q, reach, root, root_r,
         out_tab[t] = lo
 
 
+@njit(**_JIT)
+def states_bounds(C, prismatic, offset, body, X, ends, w, Q, reach, root, root_r, group,
+                  group_r, leaf, leaf_r, has_scene, kind, T_inv, par, aabb, grid, grid_meta,
+                  scene_box, balls, cells, set_meta, pairs, tab_i, tab_f, tab_values,
+                  out_scene, out_self, out_tab, M):
+    """``state_bounds`` of each configuration of ``Q (S, n)``: ``out_scene (S, L, n_o)``,
+    ``out_self (S, P)``, ``out_tab (S, T)`` and the link states ``M (S, L, 3, w)``."""
+    for s in range(Q.shape[0]):
+        state_bounds(C, prismatic, offset, body, X, ends, w, Q[s], reach, root, root_r,
+                     group, group_r, leaf, leaf_r, has_scene, kind, T_inv, par, aabb, grid,
+                     grid_meta, scene_box, balls, cells, set_meta, pairs, tab_i, tab_f,
+                     tab_values, out_scene[s], out_self[s], out_tab[s], M[s])
+
+
 # ---- search helpers ---------------------------------------------------------------------------
 @njit(**_JIT)
 def nearest(X, n, alive, x, w):

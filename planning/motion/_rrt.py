@@ -286,11 +286,24 @@ def _dist(a, b, wt):
 
 
 @njit(**_JIT)
-def reduce_path(R, S, path, n, wt, fine, margin, work):
+def fill_steps(path, n, fine, work, ns):
+    """``ns[i]``: the steps at which segment ``i`` of ``path[:n]`` is checked at ``fine``
+    (``_segment_free``'s)."""
+    sw = work[11]
+    for i in range(n - 1):
+        ns[i] = _steps(path[i], path[i + 1], sw, fine)
+
+
+@njit(**_JIT)
+def reduce_path(R, S, path, n, wt, fine, margin, work, ns):
     """Drop waypoints of ``path[:n]`` in place: from each kept one, jump to the farthest
-    later one in sight. Answers the new count."""
+    later one in sight. ``ns[:n-1]``: the step counts at which the segments were checked
+    (kept segments keep theirs; a jump gets the one it was checked at). Answers the new
+    count."""
     q = np.empty(path.shape[1])
     keep = np.empty(n, dtype=np.int64)
+    steps = np.empty(n, dtype=np.int64)
+    sw = work[11]
     keep[0] = 0
     m = 1
     i = 0
@@ -299,23 +312,46 @@ def reduce_path(R, S, path, n, wt, fine, margin, work):
         while j > i + 1 and not _segment_free(R, S, path[i], path[j], wt, fine, margin, q,
                                               work):
             j -= 1
+        steps[m - 1] = ns[i] if j == i + 1 else _steps(path[i], path[j], sw, fine)
         keep[m] = j
         m += 1
         i = j
     for k in range(m):
         path[k] = path[keep[k]]
+    for k in range(m - 1):
+        ns[k] = steps[k]
     return m
 
 
 @njit(**_JIT)
-def shortcut_run(R, S, path, n, wt, fine, margin, attempts, patience, rng, work):
+def _on_grid(path, i, ns, pos, cum, out):
+    """The state of segment ``i`` of ``path`` nearest to arc length ``pos`` among those
+    the segment was checked at (``k / ns[i]`` of the way, computed as ``_segment_free``
+    computes them), into ``out``; answers ``k``."""
+    seg = cum[i + 1] - cum[i]
+    t = 0.0 if seg <= 0 else (pos - cum[i]) / seg
+    k = min(max(int(round(t * ns[i])), 0), ns[i])
+    f = k / ns[i]
+    for d in range(path.shape[1]):
+        out[d] = path[i, d] + (path[i + 1, d] - path[i, d]) * f
+    return k
+
+
+@njit(**_JIT)
+def shortcut_run(R, S, path, n, wt, fine, margin, attempts, patience, rng, work, ns):
     """Random shortcuts between points anywhere along ``path[:n]`` (capacity at least
-    ``n + 2 * attempts``), in place; answers the new count."""
+    ``n + 2 * attempts``), in place; answers the new count. A shortcut's ends are taken
+    among the states their segments were checked at (``ns``, kept up to date), so the
+    pieces of the old segments it keeps consist of checked states and only the new segment
+    is checked."""
     dof = path.shape[1]
     q = np.empty(dof)
     a = np.empty(dof)
     b = np.empty(dof)
     cum = np.empty(path.shape[0])
+    pts = np.empty((path.shape[0], dof))
+    stp = np.empty(path.shape[0], dtype=np.int64)
+    sw = work[11]
     fails = 0
     for _ in range(attempts):
         if n <= 2 or fails >= patience:
@@ -337,40 +373,39 @@ def shortcut_run(R, S, path, n, wt, fine, margin, attempts, patience, rng, work)
         if j <= i:
             fails += 1
             continue
-        for d in range(dof):
-            seg = cum[i + 1] - cum[i]
-            t = 0.0 if seg <= 0 else (s0 - cum[i]) / seg
-            a[d] = path[i, d] + (path[i + 1, d] - path[i, d]) * t
-            seg = cum[j + 1] - cum[j]
-            t = 0.0 if seg <= 0 else (s1 - cum[j]) / seg
-            b[d] = path[j, d] + (path[j + 1, d] - path[j, d]) * t
-        old = (cum[i + 1] - s0) + (s1 - cum[j]) + (cum[j] - cum[i + 1])
-        # The new segment, and the pieces of the old ones it keeps: a piece of a free
-        # segment is checked at states of its own, which the whole one never checked.
+        k0 = _on_grid(path, i, ns, s0, cum, a)
+        k1 = _on_grid(path, j, ns, s1, cum, b)
+        old = _dist(a, path[i + 1], wt) + (cum[j] - cum[i + 1]) + _dist(path[j], b, wt)
         if _dist(a, b, wt) >= old - 1e-9 \
-                or not _segment_free(R, S, a, b, wt, fine, margin, q, work) \
-                or not _segment_free(R, S, path[i], a, wt, fine, margin, q, work) \
-                or not _segment_free(R, S, b, path[j + 1], wt, fine, margin, q, work):
+                or not _segment_free(R, S, a, b, wt, fine, margin, q, work):
             fails += 1
             continue
-        # path[:i+1], a, b, path[j+1:n]
-        tail = n - (j + 1)
-        buf = path[j + 1:n].copy()
-        path[i + 1] = a
-        path[i + 2] = b
-        path[i + 3:i + 3 + tail] = buf
-        n = i + 3 + tail
-        # Drop points equal to their predecessor.
-        m = 1
-        for k in range(1, n):
-            same = True
-            for d in range(dof):
-                if abs(path[k, d] - path[m - 1, d]) > 1e-12:
-                    same = False
-                    break
-            if not same:
-                path[m] = path[k]
-                m += 1
+        # path[:i+1], a (unless it is path[i]), b (unless it is path[j+1]), path[j+1:n],
+        # with the step counts of their segments.
+        m = 0
+        for k in range(i + 1):
+            pts[m] = path[k]
+            stp[m] = ns[k]
+            m += 1
+        if k0 > 0:
+            stp[m - 1] = k0
+            pts[m] = a
+            m += 1
+        head = m - 1                      # where the new segment starts
+        if k1 < ns[j]:
+            pts[m] = b
+            stp[m] = ns[j] - k1
+            m += 1
+            stp[head] = _steps(pts[head], b, sw, fine)
+        else:
+            stp[head] = _steps(pts[head], path[j + 1], sw, fine)
+        for k in range(j + 1, n):
+            pts[m] = path[k]
+            stp[m] = ns[k] if k < n - 1 else 0
+            m += 1
+        for k in range(m):
+            path[k] = pts[k]
+            ns[k] = stp[k]
         n = m
         fails = 0
     return n

@@ -57,6 +57,8 @@ _ORDER_CACHE_N = 1 << 16
 _ORDER_CACHE_SIZE = 4096
 #: Most flagged pairs collected for the exact stage of one configuration.
 _HIT_CAP = 256
+#: Caps (mm) of the sphere bounds ``clearance`` tries in turn before its ``reach``.
+CLEARANCE_CAPS = (32.0, 128.0, 512.0)
 #: Scenes with more objects than this are screened by their distance grid.
 GRID_OBJECTS = 24
 
@@ -335,20 +337,36 @@ class MotionChecker:
             rep = check(self.cm, Q, self.scene, self.self_collision, exact=True,
                         exact_distance=True, margin=self.margin)
             return float(min(np.min(rep.distance), reach))
+        # Nearest first: with a small cap the sphere bounds prune most pairs and states at
+        # once; a larger cap is tried only when nothing lies within the smaller one.
+        for cap in CLEARANCE_CAPS:
+            if cap >= reach:
+                break
+            best = self._least_distance(Q, cap)
+            if best < cap:
+                return best
+        return self._least_distance(Q, reach)
+
+    def _least_distance(self, Q: np.ndarray, reach: float) -> float:
+        """The exact least distance over the states ``Q`` if it is below ``reach``, else
+        ``reach``: sphere lower bounds capped at ``reach`` for every state and pair, then the
+        exact distance of the pairs whose bound is below the least exact distance found so
+        far, states in the order of their least bound."""
         r, sc = self._robot, self._scene
         L, n_o = len(self.cm.names), len(sc[1])
-        bounds = []
-        for q in Q:
-            out_scene = np.empty((L, n_o))
-            out_self = np.empty(len(r[13]))
-            out_tab = np.empty(len(r[14]))
-            M = np.empty((L, 3, r[6]))
-            self._k.state_bounds(*r[:7], np.ascontiguousarray(q), reach, *r[7:13], *sc,
-                                 *r[13:], out_scene, out_self, out_tab, M)
-            lb = min(reach, float(out_scene.min(initial=reach)),
-                     float(out_self.min(initial=reach)), float(out_tab.min(initial=reach)))
-            bounds.append((lb, out_scene, out_self, out_tab, M))
-        bounds.sort(key=lambda b: b[0])
+        S = len(Q)
+        out_scene = np.empty((S, L, n_o))
+        out_self = np.empty((S, len(r[13])))
+        out_tab = np.empty((S, len(r[14])))
+        M_all = np.empty((S, L, 3, r[6]))
+        self._k.states_bounds(*r[:7], np.ascontiguousarray(Q, dtype=float), reach,
+                              *r[7:13], *sc, *r[13:], out_scene, out_self, out_tab, M_all)
+        lb = np.full(S, reach)
+        for part in (out_scene, out_self, out_tab):
+            if part[0].size:
+                lb = np.minimum(lb, part.reshape(S, -1).min(axis=1))
+        bounds = [(float(lb[i]), out_scene[i], out_self[i], out_tab[i], M_all[i])
+                  for i in np.argsort(lb, kind="stable")]
         best = reach
         for lb, out_scene, out_self, out_tab, M in bounds:
             if lb >= best:

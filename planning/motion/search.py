@@ -260,9 +260,11 @@ def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.nd
 def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.Generator,
                       resolution: float, attempts: int = 100, patience: int = 30,
                       exact: bool = False) -> np.ndarray:
-    """``shortcut`` compiled: on the sphere model alone (the path must be sphere-free at
-    ``resolution``), or with ``exact`` confirming flagged states on the exact shapes; the
-    path as it is without compiled kernels."""
+    """``shortcut`` compiled: on the sphere model alone, or with ``exact`` confirming
+    flagged states on the exact shapes; the path as it is without compiled kernels. Every
+    segment of ``path`` must have been checked free at ``resolution`` (at its
+    ``MotionChecker.steps``): a shortcut keeps pieces of them without checking them again
+    (``planning.motion._rrt.shortcut_run``)."""
     got = _compiled(checker)
     if got is None or len(path) <= 2:
         return path
@@ -276,12 +278,14 @@ def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.G
     mode[0] = 1 if exact else 0
     rr._local.checker = checker
     c0 = int(count[0])
+    ns = np.zeros(len(buf), dtype=np.int64)
+    rr.fill_steps(buf, n, float(resolution), work, ns)
     n = rr.reduce_path(checker._robot, checker._scene, buf, n, w, float(resolution),
-                       checker.margin, work)
+                       checker.margin, work, ns)
     n = rr.shortcut_run(checker._robot, checker._scene, buf, n, w, float(resolution),
-                        checker.margin, int(attempts), int(patience), state, work)
+                        checker.margin, int(attempts), int(patience), state, work, ns)
     n = rr.reduce_path(checker._robot, checker._scene, buf, n, w, float(resolution),
-                       checker.margin, work)
+                       checker.margin, work, ns)
     checker.checks += int(count[0]) - c0
     return buf[:n].copy()
 

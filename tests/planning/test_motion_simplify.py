@@ -1,0 +1,118 @@
+"""The joint-space planner's simplification and clearance: shortcuts keep only checked
+states, and the clearance found through growing bound caps is the exact one.
+
+Robots from ``tests/planning/test_motion.py``: the gantry (a 50 mm ball moved in the plane by
+two prismatic joints, so its clearance from a box is known in closed form) and the two-link
+revolute arm."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from test_motion import ARM, BALL, GANTRY, box
+
+from kinematics.urdf_import import import_robot
+from planning.collision import CollisionScene, RobotCollisionModel, collides
+from planning.motion import MotionChecker, plan_motion
+from planning.motion.checker import CLEARANCE_CAPS
+
+pytest.importorskip("fcl")
+pytestmark = pytest.mark.usefixtures("motion_kernels")
+
+
+@pytest.fixture(scope="module")
+def gantry_cm():
+    return RobotCollisionModel.from_imported(import_robot(GANTRY.encode(), "gantry.urdf",
+                                                          robot_id="gantry"))
+
+
+@pytest.fixture(scope="module")
+def arm_cm():
+    return RobotCollisionModel.from_imported(import_robot(ARM.encode(), "arm2.urdf",
+                                                          robot_id="arm2"))
+
+
+# ---- clearance ------------------------------------------------------------------------------
+@pytest.mark.parametrize("gap", [3.0, 20.0, 90.0, 300.0, 800.0, 1500.0])
+def test_clearance_is_the_exact_distance_below_every_cap_and_beyond(gantry_cm, gap):
+    """A box whose near face is ``BALL + gap`` mm from the ball's centre: the clearance is
+    ``gap`` (capped at ``reach``, 1000 mm), whichever of the caps it falls under."""
+    face = 500.0
+    scene = CollisionScene.from_dicts([box("wall", (200.0, 4000.0, 400.0),
+                                           (face + 100.0, 0.0, 0.0))])
+    checker = MotionChecker(gantry_cm, scene)
+    q = np.array([face - BALL - gap, 0.0])     # the ball's centre, mm along x
+    got = checker.clearance(q[None])
+    assert got == pytest.approx(min(gap, 1000.0), abs=1e-6)
+    # Along a path the least one is taken: moving away only adds larger ones.
+    away = np.array([q, q - [200.0, 0.0]])
+    assert checker.clearance(away) == pytest.approx(min(gap, 1000.0), abs=1e-6)
+
+
+def test_the_caps_grow_below_the_default_reach():
+    assert list(CLEARANCE_CAPS) == sorted(CLEARANCE_CAPS) and CLEARANCE_CAPS[-1] < 1000.0
+
+
+# ---- shortcuts keep only checked states --------------------------------------------------------
+def _grid_states(path: np.ndarray, ns: np.ndarray) -> np.ndarray:
+    """Every state ``path[k] + (path[k+1] - path[k]) i / ns[k]``, ``i = 0 .. ns[k]``."""
+    out = [path[k] + (path[k + 1] - path[k]) * (np.arange(ns[k] + 1) / ns[k])[:, None]
+           for k in range(len(path) - 1)]
+    return np.concatenate(out)
+
+
+def test_shortcuts_keep_pieces_made_of_checked_states(arm_cm):
+    """The compiled reduction and shortcuts of a long zig-zag path round a post: every
+    segment left has a step count at least its own (no two checked states farther apart than
+    the resolution), and every state of that grid is free by the collision package."""
+    from planning.motion import _rrt as rr
+
+    scene = CollisionScene.from_dicts([box("post", (80.0, 80.0, 600.0), (450.0, 250.0, 0.0))])
+    checker = MotionChecker(arm_cm, scene)
+    res = plan_motion(checker, [-1.2, 0.3], [1.5, -0.4], time_limit=2.0, seed=5,
+                      simplify=False, trajectory=False)
+    raw = res.path
+    # A detour through checked, free waypoints: many segments to shorten.
+    zig = [raw[0]]
+    for a, b in zip(raw[:-1], raw[1:]):
+        for t in (0.25, 0.5, 0.75):
+            p = a + (b - a) * t + np.array([0.0, 0.15 * math.sin(9 * t)])
+            if checker.free(p) and checker.segment_free(zig[-1], p, 0.01):
+                zig.append(p)
+        if checker.segment_free(zig[-1], b, 0.01):
+            zig.append(b)
+        else:
+            pytest.skip("detour not free")   # never expected with this post
+    path = np.array(zig)
+    assert checker.path_free(path, 0.01)
+    res_ = 0.01
+    from planning.motion.search import _compiled
+
+    got = _compiled(checker)
+    assert got is not None
+    rr_, work = got
+    assert rr_ is rr
+    buf = np.empty((len(path) + 2 * 200 + 4, 2))
+    buf[:len(path)] = path
+    n = len(path)
+    ns = np.zeros(len(buf), dtype=np.int64)
+    w = np.ascontiguousarray(checker.weights)
+    work[-1][0] = 0
+    rr._local.checker = checker
+    rr.fill_steps(buf, n, res_, work, ns)
+    n = rr.reduce_path(checker._robot, checker._scene, buf, n, w, res_, checker.margin,
+                       work, ns)
+    state = np.array([12345], dtype=np.uint64)
+    n = rr.shortcut_run(checker._robot, checker._scene, buf, n, w, res_, checker.margin,
+                        200, 60, state, work, ns)
+    out, steps = buf[:n], ns[:n - 1]
+    assert np.allclose(out[0], path[0]) and np.allclose(out[-1], path[-1])
+    for k in range(n - 1):
+        assert steps[k] >= checker.steps(out[k], out[k + 1], res_)
+    Q = _grid_states(out, steps)
+    assert not collides(arm_cm, Q, scene, exact=True).any()
+    before = np.linalg.norm(np.diff(path, axis=0), axis=1).sum()
+    after = np.linalg.norm(np.diff(out, axis=0), axis=1).sum()
+    assert after < before - 0.05                 # the shortcuts did shorten it
