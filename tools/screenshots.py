@@ -21,7 +21,7 @@ CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networki
                  "--no-first-run"]
 #: The panel's folders folded before the picture, so the panel shows the plan's text (any
 #: ``Joints of <robot>`` folder is folded too).
-FOLDED = ("IK: drag the gizmo at the tool", "Workspace")
+FOLDED = ("IK: drag the gizmo at the tool", "Workspace", "Work cycle")
 
 
 def run_job(kind: str, params: dict, robot: str | None = None) -> tuple[dict, dict]:
