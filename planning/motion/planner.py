@@ -10,17 +10,18 @@ blends checked for collision and tightened until free, sharp corners at worst); 
 least clearance. Every outcome other than bad input is a ``MotionStatus`` with a message
 naming why (the colliding pair, the joint out of limits).
 
-``rrt_connect`` (and ``auto``) runs the compiled RRT-Connect (``search.rrt_connect_compiled``,
-restarting with growing budgets): first on the sphere model alone (a state the spheres flag
-counts as a collision, so its paths are free without the exact stage) for up to
-``SPHERE_SHARE`` of the time limit, a start or goal the spheres flag being first left by a
-short path checked on the exact shapes (``search.escape``); if that finds nothing (a passage
-narrower than the spheres' slack), again settling every flagged state exactly for the rest
-of the time. Without compiled kernels RRT-Connect runs in Python (``search.rrt_connect``).
-The path is then shortened with the checker that found it (compiled), and checked once more
-before it is answered. ``auto`` with a time limit past ``AUTO_REFINE_AFTER`` s also hands the
-shortened path to RRT* as the bound to beat until ``AUTO_REFINE_SHARE`` of the time, then
-shortens the best path again. ``rrt_star`` searches with RRT* for the whole time limit.
+``rrt_connect`` (and ``auto``) runs the compiled RRT-Connect
+(``search.rrt_connect_compiled``, restarting with growing budgets): first on the sphere
+model alone (a state the spheres flag counts as a collision, so its paths are free without
+the exact stage) for up to ``SPHERE_SHARE`` of the time limit and at most ``SPHERE_MAX_S``
+s, a start or goal the spheres flag being first left by a short path checked on the exact
+shapes (``search.escape``); if that finds nothing (a passage narrower than the spheres'
+slack), again settling every flagged state exactly for the rest of the time. Without
+compiled kernels RRT-Connect runs in Python (``search.rrt_connect``). The path is then
+shortened with the checker that found it (compiled), and checked once more before it is
+answered. ``auto`` with a time limit past ``AUTO_REFINE_AFTER`` s also hands the shortened
+path to RRT* as the bound to beat until ``AUTO_REFINE_SHARE`` of the time, then shortens the
+best path again. ``rrt_star`` searches with RRT* for the whole time limit.
 
 Time: the search ends by ``time_limit``; simplification has half of it, within what the
 search left (at least ``SIMPLIFY_MIN_S``); the final check, the blend checks of the trajectory
@@ -85,8 +86,14 @@ SPHERE_PHASE_SHARE = 0.1
 SPHERE_PHASE_MAX = 0.2
 EXACT_ZONE = 0.3
 #: Share of the time limit the compiled search on the sphere model alone may take before
-#: the one that settles flagged states exactly takes over.
+#: the one that settles flagged states exactly takes over, and at most ``SPHERE_MAX_S`` s: a
+#: problem the spheres solve at all they solve in milliseconds, and one whose passage is
+#: narrower than their slack should not wait for the exact search.
 SPHERE_SHARE = 0.6
+SPHERE_MAX_S = 0.3
+#: After that, the share of the search time the exact stage takes (the rest stays on the
+#: spheres alone, growing the same trees).
+EXACT_SHARE = 0.4
 #: Shortcut attempts of the exact pass after the sphere pass.
 SHORTCUT_ATTEMPTS_EXACT = 40
 #: Corner blends tried for the trajectory: largest deviation from a corner (weighted rad).
@@ -454,35 +461,44 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
 def _compiled_search(checker: MotionChecker, q_start: np.ndarray, goals: np.ndarray,
                      rng: np.random.Generator, stop, resolution: float, time_limit: float,
                      exact: bool) -> tuple[np.ndarray | None, dict, str | None]:
-    """The compiled RRT-Connect, first on the sphere model alone (a flagged state counts as a
-    collision), which is fast where the way is wide, for up to ``SPHERE_SHARE`` of the time
-    limit: a start or goal the spheres flag (a gripper about an object) is first left by a
-    short exactly checked path (``escape``) to one they clear. Then, with ``exact``, settling
-    flagged states exactly for the rest. Answers the path, statistics and the mode that
-    found it (``"spheres"``, ``"exact"``)."""
+    """The compiled RRT-Connect, first on the sphere model alone (a flagged state counts as
+    a collision), which is fast where the way is wide, for up to ``SPHERE_SHARE`` of the
+    time limit and at most ``SPHERE_MAX_S`` s: a start or goal the spheres flag (a gripper
+    about an object) is first left by a short exactly checked path (``escape``) to one they
+    clear, and those paths join the trees. Then, with ``exact``, the same trees grow on in
+    chunks of iterations that either settle flagged states exactly (through a passage
+    narrower than the spheres' slack) or stay on the spheres alone (fast across open space),
+    the time shared evenly between the two. Answers the path, statistics and the mode that
+    found it (``"spheres"``, or ``"exact"`` once the exact stage has joined)."""
     stats: dict[str, Any] = {}
-    s_deadline = time.perf_counter() + (SPHERE_SHARE if exact else 1.0) * time_limit
-
-    def s_stop() -> bool:
-        return stop() or time.perf_counter() >= s_deadline
-
-    ends = _sphere_ends(checker, q_start, goals, rng, s_stop, resolution, exact)
-    if ends is not None:
-        head, tails = ends
-        path, st = rrt_connect_compiled(checker, head[-1], np.array([t[0] for t in tails]),
-                                        rng, s_stop, resolution)
-        stats["spheres"] = st
-        if path is not None:
-            tail = next(t for t in tails if np.array_equal(t[0], path[-1]))
-            stats["escaped"] = len(head) > 1 or len(tail) > 1
-            return np.concatenate([head[:-1], path, tail[1:]]), stats, "spheres"
-    if not exact:
+    ends = _sphere_ends(checker, q_start, goals, rng, stop, resolution, exact)
+    if ends is None and not exact:
         return None, stats, None
+    switch = time.perf_counter() + (min(SPHERE_SHARE * time_limit, SPHERE_MAX_S)
+                                    if exact else time_limit)
+    spent = {False: 0.0, True: 0.0}      # s of each mode since the switch
+    last: list[Any] = [None, 0.0]         # the mode of the chunk running, since when
+
+    def use_exact() -> bool:
+        if ends is None:
+            return True          # the ends stay flagged: only the exact stage can leave them
+        now = time.perf_counter()
+        if now < switch:
+            return False
+        if last[0] is not None:
+            spent[last[0]] += now - last[1]
+        # The time shared by ``EXACT_SHARE``: an exact chunk can take far longer than a
+        # sphere chunk.
+        last[:] = [spent[True] <= EXACT_SHARE * (spent[True] + spent[False]), now]
+        return last[0]
+
+    head, tails = ends if ends is not None else (None, ())
     path, st = rrt_connect_compiled(checker, q_start, goals, rng, stop, resolution,
-                                    exact=True)
-    stats["exact"] = st
-    stats["nodes"] = st.get("nodes", 0) + stats.get("spheres", {}).get("nodes", 0)
-    return path, stats, "exact"
+                                    exact=use_exact, head=head, tails=tails)
+    stats.update(st)
+    stats["escaped"] = head is not None and len(head) > 1 or any(len(t) > 1 for t in tails)
+    return path, stats, None if path is None else \
+        ("exact" if st.get("exact_chunks", 0) else "spheres")
 
 
 def _sphere_ends(checker: MotionChecker, q_start: np.ndarray, goals: np.ndarray,

@@ -26,7 +26,7 @@ at the given ``resolution``. Randomness comes from the ``numpy.random.Generator`
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -185,17 +185,37 @@ def sphere_free(checker: MotionChecker, Q: np.ndarray) -> np.ndarray:
         checker.exact, checker.exact_zone = exact, zone
 
 
+def _chain(X: np.ndarray, P: np.ndarray, A: np.ndarray, K: np.ndarray, N: np.ndarray,
+           t: int, parent: int, nodes: np.ndarray) -> None:
+    """Add ``nodes`` to tree ``t`` as a chain hanging from node ``parent``, each the child
+    of the one before, their edges marked as checked."""
+    for x in nodes:
+        n = int(N[t])
+        X[t, n] = x
+        P[t, n] = parent
+        A[t, n] = True
+        K[t, n] = True
+        N[t] = n + 1
+        parent = n
+
+
 def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.ndarray,
-                        rng: np.random.Generator, stop: Stop, resolution: float,
-                         exact: bool = False, step: float | None = None,
+                         rng: np.random.Generator, stop: Stop, resolution: float,
+                         exact: bool | Callable[[], bool] = False, step: float | None = None,
                          lazy: float | None = None, chunk: int = 256,
-                         restart: int = RESTART_ITERATIONS) -> tuple[np.ndarray | None, dict]:
-    """``rrt_connect`` compiled: on the sphere model alone (a flagged state is a collision;
-    start and goals must be sphere-free), or with ``exact`` confirming flagged states on
-    the exact shapes (``checker.exact`` must be on). The search starts afresh after
-    ``restart`` iterations without a path, each time with ``RESTART_GROWTH`` times the
-    budget (0: never). None when ``stop()`` says so first or there are no compiled
-    kernels."""
+                         restart: int = RESTART_ITERATIONS,
+                         head: np.ndarray | None = None,
+                         tails: Sequence[np.ndarray] = ()) -> tuple[np.ndarray | None, dict]:
+    """``rrt_connect`` compiled: on the sphere model alone (a flagged state is a collision),
+    or with ``exact`` confirming flagged states on the exact shapes (``checker.exact`` must
+    be on). ``exact`` may be a callable asked before each ``chunk`` of iterations: a tree
+    grown on the spheres stays valid when the exact stage joins, so one search can switch.
+    ``head`` (a path from ``start``, its first row) and ``tails`` (paths ending at goals)
+    enter the trees as chains of edges already checked at ``resolution`` (the way out of a
+    state the spheres flag). The search starts afresh (those chains kept) after ``restart``
+    iterations without a path, each time with ``RESTART_GROWTH`` times the budget (0:
+    never). Statistics: ``iterations``, ``nodes``, ``restarts``, ``exact_chunks``. None
+    when ``stop()`` says so first or there are no compiled kernels."""
     got = _compiled(checker)
     if got is None:
         return None, {"compiled": False}
@@ -214,6 +234,13 @@ def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.nd
     A[1, :len(goals)] = True
     K[:, :max(1, len(goals))] = True
     N = np.array([1, len(goals)], dtype=np.int64)
+    if head is not None:
+        _chain(X, P, A, K, N, 0, 0, np.asarray(head, dtype=float)[1:])
+    for tail in tails:
+        tail = np.asarray(tail, dtype=float)
+        g = next(i for i in range(len(goals)) if np.array_equal(goals[i], tail[-1]))
+        _chain(X, P, A, K, N, 1, g, tail[-2::-1])
+    first_N = N.copy()
     side = np.zeros(1, dtype=np.int64)
     state = np.array([int(rng.integers(1, 2**63 - 1))], dtype=np.uint64)
     out = np.empty((2 * cap, dof))
@@ -221,19 +248,21 @@ def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.nd
     hi = np.ascontiguousarray(checker.upper, dtype=float)
     w = np.ascontiguousarray(checker.weights)
     count, mode = work[-2], work[-1]
-    mode[0] = 1 if exact else 0
     rr._local.checker = checker
-    stats = {"iterations": 0, "nodes": 0, "compiled": True, "restarts": 0}
+    stats = {"iterations": 0, "nodes": 0, "compiled": True, "restarts": 0, "exact_chunks": 0}
     budget, used = restart, 0
     while not stop():
         if restart and used >= budget:
             # Heavy-tailed run times: start afresh with a larger budget.
-            N[:] = (1, len(goals))
+            N[:] = first_N
             side[0] = 0
             used = 0
             budget = int(budget * RESTART_GROWTH)
             stats["restarts"] += 1
         used += chunk
+        now_exact = bool(exact() if callable(exact) else exact)
+        mode[0] = 1 if now_exact else 0
+        stats["exact_chunks"] += now_exact
         c0 = int(count[0])
         code, m = rr.rrt_connect_run(checker._robot, checker._scene, X, P, A, K, N, side,
                                      lo, hi, w, float(step), float(coarse), float(resolution),

@@ -116,3 +116,80 @@ def test_shortcuts_keep_pieces_made_of_checked_states(arm_cm):
     before = np.linalg.norm(np.diff(path, axis=0), axis=1).sum()
     after = np.linalg.norm(np.diff(out, axis=0), axis=1).sum()
     assert after < before - 0.05                 # the shortcuts did shorten it
+
+
+# ---- one search, spheres then exact ----------------------------------------------------------
+def _lid_scene(gap: float) -> CollisionScene:
+    """A box over the arm's upper link (a 30 mm cylinder along x at z = 200 mm when the
+    shoulder is at 0), ``gap`` mm above its surface."""
+    bottom = 200.0 + 30.0 + gap
+    return CollisionScene.from_dicts([box("lid", (120.0, 120.0, 100.0),
+                                          (200.0, 0.0, bottom + 50.0))])
+
+
+def test_a_start_the_spheres_flag_is_left_exactly_and_the_search_goes_on(arm_cm):
+    """2 mm under a lid: free, but within the spheres' slack. The plan leaves the start by
+    an exactly checked path that joins the search's tree, and every state of the answer is
+    free by the collision package."""
+    from planning.motion.search import sphere_free
+
+    scene = _lid_scene(2.0)
+    checker = MotionChecker(arm_cm, scene)
+    start, goal = np.array([0.0, 0.0]), np.array([2.0, -1.0])
+    assert checker.free(start) and not sphere_free(checker, start[None])[0]
+    res = plan_motion(checker, start, goal, time_limit=2.0, seed=2, trajectory=False)
+    assert res.status == "ok", res.message
+    assert res.stats["escaped"] is True
+    P = res.path
+    assert np.array_equal(P[0], start) and np.array_equal(P[-1], goal)
+    Q = np.concatenate([a + (b - a) * np.linspace(0, 1, 200)[:, None]
+                        for a, b in zip(P[:-1], P[1:])])
+    assert not collides(arm_cm, Q, scene, exact=True).any()
+
+
+@pytest.mark.parametrize("schedule, exact_chunks", [(False, 0), (True, 1)])
+def test_the_search_asks_its_schedule_before_each_chunk(arm_cm, schedule, exact_chunks):
+    """``exact`` as a callable: asked before every chunk of iterations, and the chunks it
+    answers True for are counted."""
+    from planning.motion.search import rrt_connect_compiled
+
+    checker = MotionChecker(arm_cm, _lid_scene(40.0))
+    asked = []
+
+    def exact() -> bool:
+        asked.append(1)
+        return schedule
+
+    path, st = rrt_connect_compiled(checker, np.array([-2.0, 0.5]), np.array([[2.0, -0.5]]),
+                                    np.random.default_rng(0), lambda: False, 0.01,
+                                    exact=exact)
+    assert path is not None and len(asked) == st["iterations"] // 256
+    assert (st["exact_chunks"] >= 1) == bool(exact_chunks) and st["exact_chunks"] <= len(asked)
+
+
+def test_a_head_chain_lets_a_sphere_search_leave_a_flagged_start(arm_cm):
+    """On the spheres alone a search cannot leave a start they flag; given an exactly
+    checked way out (``head``) it starts there, and the answer begins with that way."""
+    from planning.motion.search import escape, rrt_connect_compiled, sphere_free
+
+    checker = MotionChecker(arm_cm, _lid_scene(2.0))
+    start = np.array([0.0, 0.0])
+    rng = np.random.default_rng(4)
+    head = escape(checker, start, rng, lambda: False, 0.01)
+    assert head is not None and sphere_free(checker, head[-1:])[0]
+    # The spheres flag every shoulder angle that keeps the upper link under the lid: the
+    # goal lies on the side the way out leads to.
+    goal = np.array([2.0, -1.0]) if head[-1, 0] > 0 else np.array([-2.0, 1.0])
+    calls = []
+
+    def stop() -> bool:
+        calls.append(1)
+        return len(calls) > 40
+
+    alone, _ = rrt_connect_compiled(checker, start, goal[None], rng, stop, 0.01)
+    assert alone is None
+    calls.clear()
+    path, _ = rrt_connect_compiled(checker, start, goal[None], rng, stop, 0.01, head=head)
+    assert path is not None
+    assert np.array_equal(path[:len(head)], head) and np.array_equal(path[-1], goal)
+    assert checker.path_free(path, 0.01)
