@@ -724,35 +724,51 @@ class Viewer:
                                  f"({plain(exc.reason)}); still waiting")
             return False, None
 
-    def _poll_workspace(self) -> None:
+    def _follow(self, attr: str, panel: Any, bar: Any, failed: str,
+                kind: bool = False) -> str | None:
+        """Poll the viewer's job held in ``self.<attr>``: its progress on ``bar`` and its
+        status in ``panel`` (with the job's kind when ``kind``). Answers the job's id once
+        it has succeeded (``attr`` cleared), else None: still running, or ended otherwise
+        (``failed``, formatted with ``job`` and ``why``, says so in the panel)."""
         with self._lock:
-            job_id = self._workspace_job
+            job_id = getattr(self, attr)
         if job_id is None:
-            return
-        read, job = self._look_up(job_id, self.gui.workspace)
+            return None
+        read, job = self._look_up(job_id, panel)
         if not read:
-            return
+            return None
         with self._lock:
             if job is None or job.status in ("failed", "cancelled"):
                 why = "vanished" if job is None else f"{job.status}: {job.error or ''}"
-                self.gui.workspace.content = f"Job {code(job_id)} {plain(why)}"
-                self.gui.progress.visible = False
-                self._workspace_job = None
-                return
-            self.gui.progress.value = float(np.clip(100.0 * job.progress, 0.0, 100.0))
+                panel.content = failed.format(job=code(job_id), why=plain(why))
+                bar.visible = False
+                setattr(self, attr, None)
+                return None
+            bar.value = float(np.clip(100.0 * job.progress, 0.0, 100.0))
             if job.status != "succeeded":
                 msg = f" ({plain(job.message)})" if job.message else ""
-                self.gui.workspace.content = (f"Job {code(job_id)}: {plain(job.status)}, "
-                                              f"{100 * job.progress:.0f} %{msg}")
-                return
-            self._workspace_job = None
-            self.gui.progress.visible = False
+                what = f" ({plain(job.kind)})" if kind else ""
+                panel.content = (f"Job {code(job_id)}{what}: {plain(job.status)}, "
+                                 f"{100 * job.progress:.0f} %{msg}")
+                return None
+            setattr(self, attr, None)
+            bar.visible = False
+        return job_id
+
+    def _show_followed(self, job_id: str, panel: Any) -> bool:
+        """Draw the viewer's finished job; False (and why in ``panel``) if it cannot be."""
         try:
             self.show_job(job_id)
         except (KeyError, ValueError, JobNotReady) as exc:
             with self._lock:
-                self.gui.workspace.content = (f"Job {code(job_id)} cannot be shown: "
-                                              f"{plain(exc)}")
+                panel.content = f"Job {code(job_id)} cannot be shown: {plain(exc)}"
+            return False
+        return True
+
+    def _poll_workspace(self) -> None:
+        job_id = self._follow("_workspace_job", self.gui.workspace, self.gui.progress,
+                              "Job {job} {why}")
+        if job_id is None or not self._show_followed(job_id, self.gui.workspace):
             return
         with self._lock:
             if self._plan is not None:
@@ -807,38 +823,14 @@ class Viewer:
     def _poll_cycle(self) -> None:
         """Follow the viewer's work-cycle job: its status and progress in the panel, its
         answer drawn once it succeeds, or why it did not."""
-        with self._lock:
-            job_id = self._cycle_job
-        if job_id is None:
-            return
-        read, job = self._look_up(job_id, self.gui.cycle)
-        if not read:
+        job_id = self._follow("_cycle_job", self.gui.cycle, self.gui.cycle_progress,
+                              "**Not planned**: job {job} {why}", kind=True)
+        if job_id is None or not self._show_followed(job_id, self.gui.cycle):
             return
         with self._lock:
-            if job is None or job.status in ("failed", "cancelled"):
-                why = "vanished" if job is None else f"{job.status}: {job.error or ''}"
-                self.gui.cycle.content = f"**Not planned**: job {code(job_id)} {plain(why)}"
-                self.gui.cycle_progress.visible = False
-                self._cycle_job = None
-                return
-            self.gui.cycle_progress.value = float(np.clip(100.0 * job.progress, 0.0, 100.0))
-            if job.status != "succeeded":
-                msg = f" ({plain(job.message)})" if job.message else ""
-                self.gui.cycle.content = (f"Job {code(job_id)} ({plain(job.kind)}): "
-                                          f"{plain(job.status)}, {100 * job.progress:.0f} %"
-                                          f"{msg}")
-                return
-            self._cycle_job = None
-            self.gui.cycle_progress.visible = False
-        try:
-            self.show_job(job_id)
-        except (KeyError, ValueError, JobNotReady) as exc:
-            with self._lock:
-                self.gui.cycle.content = f"Job {code(job_id)} cannot be shown: {plain(exc)}"
-            return
-        with self._lock:
+            kind = self._plan.kind if self._plan is not None else ""
             play = " Play runs it." if self._plan is not None and self._plan.motions else ""
-            self.gui.cycle.content = (f"Planned: job {code(job_id)} ({plain(job.kind)}), "
+            self.gui.cycle.content = (f"Planned: job {code(job_id)} ({plain(kind)}), "
                                       f"shown under **Plan**.{play}")
 
     # ---- planning from the viewer ---------------------------------------------------------

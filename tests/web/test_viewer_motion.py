@@ -12,19 +12,16 @@ from __future__ import annotations
 import io
 import json
 import math
-import shutil
 import time
 
 import numpy as np
 import pytest
-from chromium_setup import CHROMIUM, CHROMIUM_ARGS, TIMEOUT_MS
+from chromium_setup import CHROMIUM, CHROMIUM_ARGS, TIMEOUT_MS, served_viewer
 from fastapi.testclient import TestClient
 
-from app.config import Settings
 from app.jobs.catalog import KINDS
 from app.jobs.kinds import JobPayload, execute
 from app.jobs.motion_kinds import motion_answer
-from app.main import create_app
 from kinematics.errors import FieldError
 from kinematics.fk import fk
 from kinematics.library import builtin_model
@@ -385,15 +382,8 @@ NODE_POSITION = """(name) => {
 @pytest.fixture(scope="module")
 def service(tmp_path_factory):
     """The API with its job and compute workers, and the viewer on a free port."""
-    if not shutil.which(CHROMIUM):
-        pytest.fail(f"Chromium not found at {CHROMIUM}: run `make chromium` "
-                    "(apt-get install -y chromium)")
-    api = create_app(Settings(no_viewer=True, data_dir=tmp_path_factory.mktemp("data"),
-                              workers=1))
-    api.state.viewer = Viewer.start("127.0.0.1", 0, api.state, environment_map=False)
-    with TestClient(api) as client:
-        yield api, client
-    api.state.viewer.stop()
+    with served_viewer(tmp_path_factory.mktemp("data")) as served:
+        yield served
 
 
 @pytest.fixture(scope="module")

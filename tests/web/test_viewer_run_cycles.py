@@ -12,11 +12,11 @@ runs the job in the service's pool and the plan's nodes appear.
 from __future__ import annotations
 
 import csv
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
+from chromium_setup import served_viewer
 
 from app.config import Settings
 from app.jobs.catalog import KINDS
@@ -252,19 +252,8 @@ def test_a_failed_job_says_why_and_draws_nothing(tiny):
 @pytest.fixture(scope="module")
 def service(tmp_path_factory):
     """The API with its job pool started and a viewer holding the tiny plans."""
-    from chromium_setup import CHROMIUM
-    from fastapi.testclient import TestClient
-
-    if not shutil.which(CHROMIUM):
-        pytest.fail(f"Chromium not found at {CHROMIUM}: run `make chromium` "
-                    "(apt-get install -y chromium)")
-    api = create_app(Settings(no_viewer=True, data_dir=tmp_path_factory.mktemp("data"),
-                              workers=1))
-    api.state.viewer = Viewer.start("127.0.0.1", 0, api.state, environment_map=False,
-                                    cycles=tiny_plans())
-    with TestClient(api) as client:
-        yield api, client
-    api.state.viewer.stop()
+    with served_viewer(tmp_path_factory.mktemp("data"), cycles=tiny_plans()) as served:
+        yield served
 
 
 @pytest.mark.browser
