@@ -21,6 +21,7 @@ import json
 import logging
 import pickle
 import threading
+from collections import OrderedDict
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -99,6 +100,9 @@ class ComputePool:
         self._executor: ProcessPoolExecutor | None = None
         self._lock = threading.Lock()
         self._waiting = 0
+        #: By token, the workers (process ids) that said they keep its value
+        #: (``app.collision_models.run_kept``); forgotten with the workers.
+        self.holders: OrderedDict[str, set[int]] = OrderedDict()
 
     @property
     def waiting(self) -> int:
@@ -127,6 +131,7 @@ class ComputePool:
         with self._lock:
             if self._executor is broken:
                 self._executor = None
+                self.holders.clear()
         broken.shutdown(wait=False, cancel_futures=True)
 
     async def run(self, heavy: bool, fn: Callable[..., Any], *args: Any) -> Any:
@@ -153,6 +158,7 @@ class ComputePool:
         """Stop the workers now, whatever they are computing (their requests are gone)."""
         with self._lock:
             executor, self._executor = self._executor, None
+            self.holders.clear()
         if executor is None:
             return
         processes = list((getattr(executor, "_processes", None) or {}).values())
