@@ -53,12 +53,16 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def start_service(data_dir: str, port: int) -> subprocess.Popen:
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "kinoplan", "--port", str(port), "--no-viewer", "--data-dir",
-         data_dir], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        env={**os.environ, "PYTHONPATH": str(ROOT)})
-    for _ in range(300):
+def start_service(data_dir: str, port: int, workers: int | None = None) -> subprocess.Popen:
+    """``python -m kinoplan`` on ``port`` (no viewer; ``workers`` compute workers, default
+    the service's), once ``/health`` answers."""
+    cmd = [sys.executable, "-m", "kinoplan", "--port", str(port), "--no-viewer",
+           "--data-dir", data_dir]
+    if workers is not None:
+        cmd += ["--compute-workers", str(workers)]
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    for _ in range(1200):   # a first start on a machine compiles kernels: up to minutes
         try:
             if httpx.get(f"http://127.0.0.1:{port}/health", timeout=1).status_code == 200:
                 return proc

@@ -32,10 +32,7 @@ exit status is 0 in any case; about a minute.
 from __future__ import annotations
 
 import argparse
-import os
-import socket
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -46,37 +43,13 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_import_http import free_port, start_service  # noqa: E402
 from bench_urdf_import import zip_folder  # noqa: E402
 from mbm_problems import FAMILIES, PANDA_FOLDER, SHARED, read_request  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The body's settings besides start, goal and scene.
 SETTINGS = {"time_limit": 2.0, "resolution": 0.01, "trajectory": False}
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def start_service(data_dir: str, port: int, workers: int | None) -> subprocess.Popen:
-    """``python -m kinoplan`` on ``port`` (no viewer), once ``/health`` answers."""
-    cmd = [sys.executable, "-m", "kinoplan", "--port", str(port), "--no-viewer",
-           "--data-dir", data_dir]
-    if workers is not None:
-        cmd += ["--compute-workers", str(workers)]
-    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, env={**os.environ, "PYTHONPATH": str(ROOT)})
-    for _ in range(1200):   # a first start on a machine compiles kernels: up to minutes
-        try:
-            if httpx.get(f"http://127.0.0.1:{port}/health", timeout=1).status_code == 200:
-                return proc
-        except httpx.HTTPError:
-            pass
-        time.sleep(0.1)
-    proc.kill()
-    raise RuntimeError("the service did not start")
 
 
 def p95(values: list[float]) -> float:
