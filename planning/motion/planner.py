@@ -465,11 +465,11 @@ def _compiled_search(checker: MotionChecker, q_start: np.ndarray, goals: np.ndar
     a collision), which is fast where the way is wide, for up to ``SPHERE_SHARE`` of the
     time limit and at most ``SPHERE_MAX_S`` s: a start or goal the spheres flag (a gripper
     about an object) is first left by a short exactly checked path (``escape``) to one they
-    clear, and those paths join the trees. Then, with ``exact``, the same trees grow on in
-    chunks of iterations that either settle flagged states exactly (through a passage
-    narrower than the spheres' slack) or stay on the spheres alone (fast across open space),
-    the time shared evenly between the two. Answers the path, statistics and the mode that
-    found it (``"spheres"``, or ``"exact"`` once the exact stage has joined)."""
+    clear, and the trees grow from those paths' ends. Then, with ``exact``, the same trees
+    grow on in chunks of iterations that either settle flagged states exactly (through a
+    passage narrower than the spheres' slack) or stay on the spheres alone (fast across open
+    space), the time shared evenly between the two. Answers the path, statistics and the
+    mode that found it (``"spheres"``, or ``"exact"`` once the exact stage has joined)."""
     stats: dict[str, Any] = {}
     ends = _sphere_ends(checker, q_start, goals, rng, stop, resolution, exact)
     if ends is None and not exact:

@@ -185,20 +185,6 @@ def sphere_free(checker: MotionChecker, Q: np.ndarray) -> np.ndarray:
         checker.exact, checker.exact_zone = exact, zone
 
 
-def _chain(X: np.ndarray, P: np.ndarray, A: np.ndarray, K: np.ndarray, N: np.ndarray,
-           t: int, parent: int, nodes: np.ndarray) -> None:
-    """Add ``nodes`` to tree ``t`` as a chain hanging from node ``parent``, each the child
-    of the one before, their edges marked as checked."""
-    for x in nodes:
-        n = int(N[t])
-        X[t, n] = x
-        P[t, n] = parent
-        A[t, n] = True
-        K[t, n] = True
-        N[t] = n + 1
-        parent = n
-
-
 def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.ndarray,
                          rng: np.random.Generator, stop: Stop, resolution: float,
                          exact: bool | Callable[[], bool] = False, step: float | None = None,
@@ -210,9 +196,10 @@ def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.nd
     or with ``exact`` confirming flagged states on the exact shapes (``checker.exact`` must
     be on). ``exact`` may be a callable asked before each ``chunk`` of iterations: a tree
     grown on the spheres stays valid when the exact stage joins, so one search can switch.
-    ``head`` (a path from ``start``, its first row) and ``tails`` (paths ending at goals)
-    enter the trees as chains of edges already checked at ``resolution`` (the way out of a
-    state the spheres flag). The search starts afresh (those chains kept) after ``restart``
+    ``head`` (a path from ``start``, its first row) and ``tails`` (paths ending at goals),
+    their edges already checked at ``resolution`` (the way out of a state the spheres flag):
+    the trees then grow from the head's last state and the tails' first states, and the
+    answer is put together with them. The search starts afresh after ``restart``
     iterations without a path, each time with ``RESTART_GROWTH`` times the budget (0:
     never). Statistics: ``iterations``, ``nodes``, ``restarts``, ``exact_chunks``. None
     when ``stop()`` says so first or there are no compiled kernels."""
@@ -228,18 +215,15 @@ def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.nd
     P = np.full((2, cap), -1, dtype=np.int64)
     A = np.zeros((2, cap), dtype=bool)
     K = np.zeros((2, cap), dtype=bool)
-    X[0, 0] = start
-    X[1, :len(goals)] = goals
+    head = None if head is None else np.asarray(head, dtype=float)
+    tails = [np.asarray(t, dtype=float) for t in tails]
+    roots = np.array([t[0] for t in tails]) if tails else goals
+    X[0, 0] = start if head is None else head[-1]
+    X[1, :len(roots)] = roots
     A[0, 0] = True
-    A[1, :len(goals)] = True
-    K[:, :max(1, len(goals))] = True
-    N = np.array([1, len(goals)], dtype=np.int64)
-    if head is not None:
-        _chain(X, P, A, K, N, 0, 0, np.asarray(head, dtype=float)[1:])
-    for tail in tails:
-        tail = np.asarray(tail, dtype=float)
-        g = next(i for i in range(len(goals)) if np.array_equal(goals[i], tail[-1]))
-        _chain(X, P, A, K, N, 1, g, tail[-2::-1])
+    A[1, :len(roots)] = True
+    K[:, :max(1, len(roots))] = True
+    N = np.array([1, len(roots)], dtype=np.int64)
     first_N = N.copy()
     side = np.zeros(1, dtype=np.int64)
     state = np.array([int(rng.integers(1, 2**63 - 1))], dtype=np.uint64)
@@ -271,7 +255,13 @@ def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.nd
         stats["iterations"] += chunk
         if code == rr.RUN_FOUND:
             stats["nodes"] = int(N.sum())
-            return out[:m].copy(), stats
+            path = out[:m].copy()
+            if head is not None:
+                path = np.concatenate([head[:-1], path])
+            if tails:
+                tail = next(t for t in tails if np.array_equal(t[0], path[-1]))
+                path = np.concatenate([path, tail[1:]])
+            return path, stats
         if code == rr.RUN_FULL:
             if cap >= 1 << 20:
                 break

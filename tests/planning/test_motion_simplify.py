@@ -129,7 +129,7 @@ def _lid_scene(gap: float) -> CollisionScene:
 
 def test_a_start_the_spheres_flag_is_left_exactly_and_the_search_goes_on(arm_cm):
     """2 mm under a lid: free, but within the spheres' slack. The plan leaves the start by
-    an exactly checked path that joins the search's tree, and every state of the answer is
+    an exactly checked path the search grows on from, and every state of the answer is
     free by the collision package."""
     from planning.motion.search import sphere_free
 
@@ -167,7 +167,7 @@ def test_the_search_asks_its_schedule_before_each_chunk(arm_cm, schedule, exact_
     assert (st["exact_chunks"] >= 1) == bool(exact_chunks) and st["exact_chunks"] <= len(asked)
 
 
-def test_a_head_chain_lets_a_sphere_search_leave_a_flagged_start(arm_cm):
+def test_a_head_lets_a_sphere_search_leave_a_flagged_start(arm_cm):
     """On the spheres alone a search cannot leave a start they flag; given an exactly
     checked way out (``head``) it starts there, and the answer begins with that way."""
     from planning.motion.search import escape, rrt_connect_compiled, sphere_free
