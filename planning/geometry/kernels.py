@@ -23,7 +23,8 @@ from numba import njit
 from .registry import KERNEL_CODES
 
 __all__ = ["box_point", "cylinder_point", "sphere_point", "capsule_point", "local_distance",
-           "ballset_distance", "ballset_within", "object_distance", "object_within"]
+           "local_within", "ballset_distance", "ballset_within", "object_distance",
+           "object_within"]
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
 
@@ -83,6 +84,27 @@ def local_distance(k, x, y, z, par, o):
     if k == CAPSULE:
         return capsule_point(x, y, z, par, o)
     return math.nan
+
+
+@njit(**_JIT)
+def local_within(k, x, y, z, par, o, reach):
+    """Whether the local point ``(x, y, z)`` is within ``reach`` (>= 0) of primitive ``o``
+    of code ``k``: ``local_distance(...) <= reach``, compared squared where the shape's
+    distance is a square root (box, sphere, capsule), which the leaf tests of the motion
+    checker make millions of times."""
+    if k == BOX:
+        ox = max(abs(x) - par[o, 0], 0.0)
+        oy = max(abs(y) - par[o, 1], 0.0)
+        oz = max(abs(z) - par[o, 2], 0.0)
+        return ox * ox + oy * oy + oz * oz <= reach * reach
+    if k == SPHERE:
+        lim = par[o, 0] + reach
+        return x * x + y * y + z * z <= lim * lim
+    if k == CAPSULE:
+        zz = min(max(z, -par[o, 1]), par[o, 1])
+        lim = par[o, 0] + reach
+        return x * x + y * y + (z - zz) * (z - zz) <= lim * lim
+    return local_distance(k, x, y, z, par, o) <= reach
 
 
 # ---- ball sets ------------------------------------------------------------------------------
@@ -161,6 +183,10 @@ def object_distance(p, reach, o, kind, T_inv, par, balls, cells, set_meta):
 def object_within(p, reach, o, kind, T_inv, par, balls, cells, set_meta):
     """Whether the point ``p`` is within ``reach`` (>= 0) of object ``o`` (a ball set
     stops at the first ball near enough)."""
-    if kind[o] == BALLS:
+    k = kind[o]
+    if k == BALLS:
         return ballset_within(p, reach, int(par[o, 0]), balls, cells, set_meta)
-    return object_distance(p, reach, o, kind, T_inv, par, balls, cells, set_meta) <= reach
+    x = T_inv[o, 0, 0] * p[0] + T_inv[o, 0, 1] * p[1] + T_inv[o, 0, 2] * p[2] + T_inv[o, 0, 3]
+    y = T_inv[o, 1, 0] * p[0] + T_inv[o, 1, 1] * p[1] + T_inv[o, 1, 2] * p[2] + T_inv[o, 1, 3]
+    z = T_inv[o, 2, 0] * p[0] + T_inv[o, 2, 1] * p[1] + T_inv[o, 2, 2] * p[2] + T_inv[o, 2, 3]
+    return local_within(k, x, y, z, par, o, reach)

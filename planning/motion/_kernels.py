@@ -41,7 +41,6 @@ import math
 import numpy as np
 from numba import njit
 
-from kinematics._kernels import _move, _times
 from planning.geometry.kernels import object_distance, object_within
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
@@ -53,33 +52,62 @@ FLAGGED = 1
 
 # ---- frames ---------------------------------------------------------------------------------
 @njit(**_JIT)
-def _mul_into(A, B, out):
-    """``out = A @ B`` for rigid (3, 4) rows."""
-    for r in range(3):
-        for c in range(4):
-            v = A[r, 0] * B[0, c] + A[r, 1] * B[1, c] + A[r, 2] * B[2, c]
-            if c == 3:
-                v += A[r, 3]
-            out[r, c] = v
-
-
-@njit(**_JIT)
 def frames(C, prismatic, offset, body, X, q, T, F):
-    """Frames ``F (E, 3, 4)`` of configuration ``q``; ``T (3, 4)`` is scratch."""
+    """Frames ``F (E, 3, 4)`` of configuration ``q``; ``T (3, 4)`` is scratch. The running
+    transform is held in scalars (the compiler keeps them in registers)."""
     n = q.shape[0]
     E = body.shape[0]
-    for r in range(3):
-        for c in range(4):
-            T[r, c] = 1.0 if r == c else 0.0
-    for e in range(E):
-        if body[e] == 0:
-            _mul_into(T, X[e], F[e])
-    for i in range(n):
-        _times(T, C, i)                       # T = T @ C[i] @ M_i(x_i)
-        _move(T, prismatic[i], q[i] + offset[i])
+    t00 = 1.0
+    t01 = 0.0
+    t02 = 0.0
+    t03 = 0.0
+    t10 = 0.0
+    t11 = 1.0
+    t12 = 0.0
+    t13 = 0.0
+    t20 = 0.0
+    t21 = 0.0
+    t22 = 1.0
+    t23 = 0.0
+    for i in range(n + 1):
         for e in range(E):
-            if body[e] == i + 1:
-                _mul_into(T, X[e], F[e])
+            if body[e] == i:
+                for c in range(4):
+                    x0 = X[e, 0, c]
+                    x1 = X[e, 1, c]
+                    x2 = X[e, 2, c]
+                    F[e, 0, c] = t00 * x0 + t01 * x1 + t02 * x2
+                    F[e, 1, c] = t10 * x0 + t11 * x1 + t12 * x2
+                    F[e, 2, c] = t20 * x0 + t21 * x1 + t22 * x2
+                F[e, 0, 3] += t03
+                F[e, 1, 3] += t13
+                F[e, 2, 3] += t23
+        if i == n:
+            break
+        # T = T @ C[i] @ M_i(x_i)
+        a00 = t00 * C[i, 0, 0] + t01 * C[i, 1, 0] + t02 * C[i, 2, 0]
+        a01 = t00 * C[i, 0, 1] + t01 * C[i, 1, 1] + t02 * C[i, 2, 1]
+        a02 = t00 * C[i, 0, 2] + t01 * C[i, 1, 2] + t02 * C[i, 2, 2]
+        a03 = t00 * C[i, 0, 3] + t01 * C[i, 1, 3] + t02 * C[i, 2, 3] + t03
+        a10 = t10 * C[i, 0, 0] + t11 * C[i, 1, 0] + t12 * C[i, 2, 0]
+        a11 = t10 * C[i, 0, 1] + t11 * C[i, 1, 1] + t12 * C[i, 2, 1]
+        a12 = t10 * C[i, 0, 2] + t11 * C[i, 1, 2] + t12 * C[i, 2, 2]
+        a13 = t10 * C[i, 0, 3] + t11 * C[i, 1, 3] + t12 * C[i, 2, 3] + t13
+        a20 = t20 * C[i, 0, 0] + t21 * C[i, 1, 0] + t22 * C[i, 2, 0]
+        a21 = t20 * C[i, 0, 1] + t21 * C[i, 1, 1] + t22 * C[i, 2, 1]
+        a22 = t20 * C[i, 0, 2] + t21 * C[i, 1, 2] + t22 * C[i, 2, 2]
+        a23 = t20 * C[i, 0, 3] + t21 * C[i, 1, 3] + t22 * C[i, 2, 3] + t23
+        x = q[i] + offset[i]
+        if prismatic[i]:
+            t00, t01, t02, t03 = a00, a01, a02, a03 + x * a02
+            t10, t11, t12, t13 = a10, a11, a12, a13 + x * a12
+            t20, t21, t22, t23 = a20, a21, a22, a23 + x * a22
+        else:
+            c = math.cos(x)
+            s = math.sin(x)
+            t00, t01, t02, t03 = c * a00 + s * a01, c * a01 - s * a00, a02, a03
+            t10, t11, t12, t13 = c * a10 + s * a11, c * a11 - s * a10, a12, a13
+            t20, t21, t22, t23 = c * a20 + s * a21, c * a21 - s * a20, a22, a23
 
 
 @njit(**_JIT)
@@ -137,9 +165,12 @@ def _grid_bound(p, grid, meta, box):
 
 @njit(**_JIT)
 def _near_scene(p, reach, o, aabb):
-    return (aabb[o, 0] - reach <= p[0] <= aabb[o, 3] + reach
-            and aabb[o, 1] - reach <= p[1] <= aabb[o, 4] + reach
-            and aabb[o, 2] - reach <= p[2] <= aabb[o, 5] + reach)
+    """Whether ``p`` is within ``reach`` of object ``o``'s bounding box (Euclidean; without
+    branches, for the loop over every object)."""
+    gx = max(aabb[o, 0] - p[0], p[0] - aabb[o, 3], 0.0)
+    gy = max(aabb[o, 1] - p[1], p[1] - aabb[o, 4], 0.0)
+    gz = max(aabb[o, 2] - p[2], p[2] - aabb[o, 5], 0.0)
+    return gx * gx + gy * gy + gz * gz <= reach * reach
 
 
 # ---- pair tables ------------------------------------------------------------------------------
@@ -192,7 +223,7 @@ def _table_flagged(q, margin, tab_i, tab_f, tab_values, hits, n_hits, cap):
 
 
 # ---- one configuration ------------------------------------------------------------------------
-@njit(**_JIT)
+@njit(inline="always", **_JIT)
 def _within_any(p, reach, kind, T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells,
                 set_meta, among, n_among, out):
     """The objects of ``among[:n_among]`` that may be within ``reach`` of ``p``, into

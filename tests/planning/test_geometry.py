@@ -112,6 +112,14 @@ def test_kernels_agree_with_their_python_twins(name):
         for p, d in zip(P[near], twin[near]):
             assert kernels.object_within(p, max(d, 0.0) + 1e-6, 0, kind_arr, T_inv, par, B,
                                          cells, meta)
+        # ... and says no beyond it (compared squared for some shapes: never a near miss
+        # answered as clear, never a far point answered as near).
+        for reach in (0.0, 10.0, 80.0, 300.0):
+            clear = twin > reach + 1e-6
+            close = twin <= reach - 1e-6
+            within = np.array([kernels.object_within(p, reach, 0, kind_arr, T_inv, par, B,
+                                                     cells, meta) for p in P])
+            assert not within[clear].any() and within[close].all()
 
 
 @pytest.mark.slow
