@@ -488,17 +488,20 @@ def state_bounds(C, prismatic, offset, body, X, ends, w, q, reach, root, root_r,
     Wr = np.empty((L, 3))
     Wg = np.empty((L, G, 3))
     Wl = np.empty((L, G, m, 3))
+    done = np.zeros(L, dtype=np.int8)
     for l in range(L):
         _place(M, l, root[l], Wr[l])
-        _place_groups(M, l, group, Wg)
-        _place_leaves(M, l, leaf, Wl)
     # Balls contain their children: a coarser ball's distance bounds its leaves', so whole
-    # links and groups are skipped once they cannot beat the pair's best so far.
+    # links and groups are skipped once they cannot beat the pair's best so far (a link's
+    # groups and leaves are placed only then), and an object whose bounding box is beyond
+    # the cap is not measured.
     for l in range(L):
         for o in range(n_o):
             best = reach
-            if has_scene and object_distance(Wr[l], reach + root_r[l], o, kind, T_inv, par,
-                                              balls, cells, set_meta) - root_r[l] < best:
+            if has_scene and _near_scene(Wr[l], reach + root_r[l], o, aabb) \
+                    and object_distance(Wr[l], reach + root_r[l], o, kind, T_inv, par,
+                                        balls, cells, set_meta) - root_r[l] < best:
+                _ready(M, l, 2, group, leaf, Wg, Wl, done)
                 for g in range(G):
                     rg = group_r[l, g]
                     if object_distance(Wg[l, g], best + rg, o, kind, T_inv, par, balls, cells,
@@ -516,6 +519,8 @@ def state_bounds(C, prismatic, offset, body, X, ends, w, q, reach, root, root_r,
         c = pairs[k, 1]
         best = reach
         if math.sqrt(_sq3(Wr[a], Wr[c])) - root_r[a] - root_r[c] < best:
+            _ready(M, a, 2, group, leaf, Wg, Wl, done)
+            _ready(M, c, 2, group, leaf, Wg, Wl, done)
             for ga in range(G):
                 for gc in range(G):
                     if math.sqrt(_sq3(Wg[a, ga], Wg[c, gc])) - group_r[a, ga] \
