@@ -315,7 +315,25 @@ def check_state(M, margin, root, root_r, group, group_r, leaf, leaf_r, has_scene
     (flagged). Ball centres are placed once per state, a link's groups and leaves only when
     a coarser ball of it is near something; a leaf is tested only against the objects its
     group ball is near. ``Wr (L, 3)``, ``Wg``, ``Wl``, ``done (L,)``, ``all_o``, ``near_r``,
-    ``near_g`` ``(n_o,)`` are scratch."""
+    ``near_g`` ``(n_o,)`` are scratch. The loops that check state after state call
+    ``_check``, its body, with the arrays grouped in tuples (inlined into them: numba's
+    inliner takes at most 30 arguments, and a call passing these 33 costs as much as a
+    third of an empty scene's check)."""
+    return _check(M, margin, (root, root_r, group, group_r, leaf, leaf_r),
+                  (has_scene, kind, T_inv, par, aabb, grid, grid_meta, scene_box, balls,
+                   cells, set_meta), pairs, q, (tab_i, tab_f, tab_values), hits, cap,
+                  (Wr, Wg, Wl, done, all_o, near_r, near_g))
+
+
+@njit(inline="always", **_JIT)
+def _check(M, margin, sph, scn, pairs, q, tabs, hits, cap, scr):
+    """``check_state`` with ``sph = (root, root_r, group, group_r, leaf, leaf_r)``, ``scn``
+    the scene's arrays (``MotionChecker._scene``), ``tabs = (tab_i, tab_f, tab_values)``
+    and ``scr = (Wr, Wg, Wl, done, all_o, near_r, near_g)``."""
+    root, root_r, group, group_r, leaf, leaf_r = sph
+    has_scene, kind, T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells, set_meta = scn
+    tab_i, tab_f, tab_values = tabs
+    Wr, Wg, Wl, done, all_o, near_r, near_g = scr
     n_hits = _table_flagged(q, margin, tab_i, tab_f, tab_values, hits, 0, cap)
     if cap == 0 and n_hits:
         return 1
@@ -410,10 +428,10 @@ def check_states(C, prismatic, offset, body, X, ends, w, Q, margin, root, root_r
     for b in range(Q.shape[0]):
         frames(C, prismatic, offset, body, X, Q[b], T, F)
         link_state(F, ends, w, M)
-        out[b] = check_state(M, margin, root, root_r, group, group_r, leaf, leaf_r,
-                             has_scene, kind, T_inv, par, aabb, grid, grid_meta, scene_box,
-                             balls, cells, set_meta, pairs, Q[b], tab_i, tab_f, tab_values,
-                             hits, 0, Wr, Wg, Wl, done, all_o, near_r, near_g)
+        out[b] = _check(M, margin, (root, root_r, group, group_r, leaf, leaf_r),
+                        (has_scene, kind, T_inv, par, aabb, grid, grid_meta, scene_box,
+                         balls, cells, set_meta), pairs, Q[b], (tab_i, tab_f, tab_values),
+                        hits, 0, (Wr, Wg, Wl, done, all_o, near_r, near_g))
 
 
 @njit(**_JIT)
@@ -459,10 +477,10 @@ def segment_first(C, prismatic, offset, body, X, ends, w, a, b, n, order, start,
             q[j] = a[j] + (b[j] - a[j]) * s
         frames(C, prismatic, offset, body, X, q, T, F)
         link_state(F, ends, w, M)
-        if check_state(M, margin, root, root_r, group, group_r, leaf, leaf_r, has_scene, kind,
-                       T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells, set_meta,
-                       pairs, q, tab_i, tab_f, tab_values, hits, 0, Wr, Wg, Wl, done, all_o,
-                       near_r, near_g):
+        if _check(M, margin, (root, root_r, group, group_r, leaf, leaf_r),
+                  (has_scene, kind, T_inv, par, aabb, grid, grid_meta, scene_box, balls,
+                   cells, set_meta), pairs, q, (tab_i, tab_f, tab_values), hits, 0,
+                  (Wr, Wg, Wl, done, all_o, near_r, near_g)):
             return i
     return order.shape[0]
 

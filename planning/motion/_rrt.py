@@ -25,7 +25,7 @@ import time
 import numpy as np
 from numba import njit, objmode
 
-from ._kernels import _JIT, _scratch, check_state, frames, link_state, nearest
+from ._kernels import _JIT, _check, _scratch, frames, link_state, nearest
 
 #: What ``rrt_connect_run`` answers.
 RUN_FOUND = 1
@@ -87,9 +87,8 @@ def _free_state(R, S, q, margin, T, F, M, hits, Wr, Wg, Wl, done, all_o, near_r,
     C, prismatic, offset, body, X, ends, w = R[0], R[1], R[2], R[3], R[4], R[5], R[6]
     frames(C, prismatic, offset, body, X, q, T, F)
     link_state(F, ends, w, M)
-    if check_state(M, margin, R[7], R[8], R[9], R[10], R[11], R[12], S[0], S[1], S[2],
-                   S[3], S[4], S[5], S[6], S[7], S[8], S[9], S[10], R[13], q, R[14],
-                   R[15], R[16], hits, 0, Wr, Wg, Wl, done, all_o, near_r, near_g) == 0:
+    if _check(M, margin, (R[7], R[8], R[9], R[10], R[11], R[12]), S, R[13], q,
+              (R[14], R[15], R[16]), hits, 0, (Wr, Wg, Wl, done, all_o, near_r, near_g)) == 0:
         return True
     if mode[0] == 0:
         return False
