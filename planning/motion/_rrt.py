@@ -13,7 +13,7 @@ answers "not free" at once: a search or a shortcut then keeps only what it has a
 proved, and ends with its chunk.
 
 ``R`` is the robot's argument tuple and ``S`` the scene's (``MotionChecker``'s ``_robot`` and
-``_scene``), unpacked by ``_free_state``.
+``_scene``), unpacked by ``_spheres_clear``.
 """
 
 from __future__ import annotations
@@ -79,17 +79,21 @@ def _late(count, mode):
     return late
 
 
-@njit(cache=True, error_model="numpy", boundscheck=False)   # objmode: no nogil
-def _free_state(R, S, q, margin, T, F, M, hits, Wr, Wg, Wl, done, all_o, near_r, near_g,
-                mode):
-    """Whether configuration ``q`` is free: the spheres clear it, or (``mode[0] == 1``)
-    the exact stage does."""
+@njit(inline="always", **_JIT)
+def _spheres_clear(R, S, q, margin, T, F, M, hits, scr):
+    """Whether the spheres (and pair tables) clear configuration ``q``; ``scr`` is the
+    ``_scratch`` tuple. Inlined into the segment check."""
     C, prismatic, offset, body, X, ends, w = R[0], R[1], R[2], R[3], R[4], R[5], R[6]
     frames(C, prismatic, offset, body, X, q, T, F)
     link_state(F, ends, w, M)
-    if _check(M, margin, (R[7], R[8], R[9], R[10], R[11], R[12]), S, R[13], q,
-              (R[14], R[15], R[16]), hits, 0, (Wr, Wg, Wl, done, all_o, near_r, near_g)) == 0:
-        return True
+    return _check(M, margin, (R[7], R[8], R[9], R[10], R[11], R[12]), S, R[13], q,
+                  (R[14], R[15], R[16]), hits, 0, scr) == 0
+
+
+@njit(cache=True, error_model="numpy", boundscheck=False)   # objmode: no nogil
+def _exact_state(q, mode):
+    """The exact stage of a configuration the spheres flag (``mode[0] == 1``; counted in
+    ``mode[1]``): whether it is free."""
     if mode[0] == 0:
         return False
     mode[1] += 1
@@ -126,9 +130,11 @@ def _segment_free(R, S, a, b, wt, res, margin, q, work):
             for j in range(a.shape[0]):
                 q[j] = a[j] + (b[j] - a[j]) * t
             count[0] += 1
-            if _late(count, mode) or not _free_state(R, S, q, margin, T, F, M, hits, Wr,
-                                                      Wg, Wl, done, all_o, near_r, near_g,
-                                                      mode):
+            if _late(count, mode):
+                return False
+            if not _spheres_clear(R, S, q, margin, T, F, M, hits,
+                                  (Wr, Wg, Wl, done, all_o, near_r, near_g)) \
+                    and not _exact_state(q, mode):
                 return False
         s //= 2
     return True
