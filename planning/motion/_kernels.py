@@ -164,6 +164,15 @@ def _grid_bound(p, grid, meta, box):
 
 
 @njit(**_JIT)
+def _near_box(p, reach, box):
+    """Whether ``p`` is within ``reach`` of the box ``(6,)`` = lo xyz, hi xyz."""
+    gx = max(box[0] - p[0], p[0] - box[3], 0.0)
+    gy = max(box[1] - p[1], p[1] - box[4], 0.0)
+    gz = max(box[2] - p[2], p[2] - box[5], 0.0)
+    return gx * gx + gy * gy + gz * gz <= reach * reach
+
+
+@njit(**_JIT)
 def _near_scene(p, reach, o, aabb):
     """Whether ``p`` is within ``reach`` of object ``o``'s bounding box (Euclidean; without
     branches, for the loop over every object)."""
@@ -232,10 +241,17 @@ def _within_any(p, reach, kind, T_inv, par, aabb, grid, grid_meta, scene_box, ba
     if grid_meta[3] > 0.0 and _grid_bound(p, grid, grid_meta, scene_box) > reach:
         return 0
     n = 0
+    p0 = p[0]           # held in registers: the stores to ``out`` might alias ``p``
+    p1 = p[1]
+    p2 = p[2]
+    r2 = reach * reach
     for i in range(n_among):
         o = among[i]
-        if _near_scene(p, reach, o, aabb) and object_within(p, reach, o, kind, T_inv, par,
-                                                             balls, cells, set_meta):
+        gx = max(aabb[o, 0] - p0, p0 - aabb[o, 3], 0.0)
+        gy = max(aabb[o, 1] - p1, p1 - aabb[o, 4], 0.0)
+        gz = max(aabb[o, 2] - p2, p2 - aabb[o, 5], 0.0)
+        if gx * gx + gy * gy + gz * gz <= r2 and object_within(p, reach, o, kind, T_inv,
+                                                               par, balls, cells, set_meta):
             out[n] = o
             n += 1
     return n
@@ -350,6 +366,9 @@ def _check(M, margin, sph, scn, pairs, q, tabs, hits, cap, scr):
     if has_scene:
         n_o = kind.shape[0]
         for l in range(L):
+            # A link's ball beyond the scene's box (inflated by its reach) is near nothing.
+            if not _near_box(Wr[l], root_r[l] + margin, scene_box):
+                continue
             nr = _within_any(Wr[l], root_r[l] + margin, kind, T_inv, par, aabb, grid,
                              grid_meta, scene_box, balls, cells, set_meta, all_o, n_o, near_r)
             if nr == 0:

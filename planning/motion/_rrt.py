@@ -414,3 +414,20 @@ def shortcut_run(R, S, path, n, wt, fine, margin, attempts, patience, rng, work,
         n = m
         fails = 0
     return n
+
+
+@njit(**_JIT)
+def refine_steps(R, S, path, n, wt, fine, margin, work, ns):
+    """Check at ``fine`` every segment of ``path[:n]`` whose step count ``ns`` is coarser
+    than ``fine`` asks (a lazily checked shortcut, or a piece of one), raising its count;
+    False at the first that is not free."""
+    q = np.empty(path.shape[1])
+    sw = work[11]
+    for k in range(n - 1):
+        need = _steps(path[k], path[k + 1], sw, fine)
+        if ns[k] >= need:
+            continue
+        if not _segment_free(R, S, path[k], path[k + 1], wt, fine, margin, q, work):
+            return False
+        ns[k] = need
+    return True

@@ -276,6 +276,11 @@ def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.nd
     return None, stats
 
 
+#: The compiled shortcuts first check their new segments at this many times the
+#: resolution, then every segment of the result at the resolution (``shortcut_compiled``).
+SHORTCUT_LAZY = 4
+
+
 def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.Generator,
                       resolution: float, attempts: int = 100, patience: int = 30,
                       exact: bool = False) -> np.ndarray:
@@ -297,14 +302,23 @@ def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.G
     mode[0] = 1 if exact else 0
     rr._local.checker = checker
     c0 = int(count[0])
-    ns = np.zeros(len(buf), dtype=np.int64)
-    rr.fill_steps(buf, n, float(resolution), work, ns)
-    n = rr.reduce_path(checker._robot, checker._scene, buf, n, w, float(resolution),
-                       checker.margin, work, ns)
-    n = rr.shortcut_run(checker._robot, checker._scene, buf, n, w, float(resolution),
-                        checker.margin, int(attempts), int(patience), state, work, ns)
-    n = rr.reduce_path(checker._robot, checker._scene, buf, n, w, float(resolution),
-                       checker.margin, work, ns)
+    R, S, margin = checker._robot, checker._scene, checker.margin
+    seed = state.copy()
+    fine = float(resolution)
+    for step in (SHORTCUT_LAZY * fine, fine) if SHORTCUT_LAZY > 1 else (fine,):
+        # First with new segments checked at a coarser step, then each segment not yet
+        # checked at ``resolution`` checked at it; if one fails, again at ``resolution``.
+        buf[:len(path)] = path
+        n = len(path)
+        state[:] = seed
+        ns = np.zeros(len(buf), dtype=np.int64)
+        rr.fill_steps(buf, n, fine, work, ns)
+        n = rr.reduce_path(R, S, buf, n, w, step, margin, work, ns)
+        n = rr.shortcut_run(R, S, buf, n, w, step, margin, int(attempts), int(patience),
+                            state, work, ns)
+        n = rr.reduce_path(R, S, buf, n, w, step, margin, work, ns)
+        if step == fine or rr.refine_steps(R, S, buf, n, w, fine, margin, work, ns):
+            break
     checker.checks += int(count[0]) - c0
     return buf[:n].copy()
 

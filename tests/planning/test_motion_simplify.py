@@ -193,3 +193,30 @@ def test_a_head_lets_a_sphere_search_leave_a_flagged_start(arm_cm):
     assert path is not None
     assert np.array_equal(path[:len(head)], head) and np.array_equal(path[-1], goal)
     assert checker.path_free(path, 0.01)
+
+
+def test_a_lazy_shortcut_through_a_thin_wall_is_refused(gantry_cm):
+    """The shortcuts first check new segments at ``SHORTCUT_LAZY`` times the resolution: a
+    20 mm wall that the 50 mm ball passes between two coarse states (200 mm apart) lets the
+    straight line through, the check at the resolution (50 mm) finds the wall, and the
+    shortcuts run again at the resolution: the answer goes through the gap, every state of
+    it 50 mm apart free by the collision package."""
+    from planning.motion.search import SHORTCUT_LAZY, shortcut_compiled
+
+    assert SHORTCUT_LAZY * 0.5 * 100.0 >= 200.0       # coarse prismatic steps of 200 mm
+    h = 2000.0
+    scene = CollisionScene.from_dicts([
+        box("upper", (20.0, h, 400), (450.0, 150.0 + h / 2, 0)),
+        box("lower", (20.0, h, 400), (450.0, -150.0 - h / 2, 0))])
+    checker = MotionChecker(gantry_cm, scene)
+    path = np.array([[0.0, 600.0], [450.0, 0.0], [900.0, 600.0]])
+    assert checker.path_free(path, 0.5)
+    assert checker.segment_free(path[0], path[-1], SHORTCUT_LAZY * 0.5)   # missed coarsely
+    assert not checker.segment_free(path[0], path[-1], 0.5)
+    out = shortcut_compiled(checker, path, np.random.default_rng(0), 0.5)
+    assert np.array_equal(out[0], path[0]) and np.array_equal(out[-1], path[-1])
+    assert len(out) >= 3                                  # not the straight line
+    Q = np.concatenate([a + (b - a) * (np.arange(n + 1) / n)[:, None]
+                        for a, b in zip(out[:-1], out[1:])
+                        for n in [max(1, int(np.ceil(np.abs(b - a).max() / 50.0)))]])
+    assert not collides(gantry_cm, Q, scene, exact=True).any()
