@@ -54,6 +54,14 @@ def warm_up() -> float:
         path, _ = rrt_connect_compiled(checker, a, b[None], rng, lambda: False, 0.01)
         if path is not None:
             shortcut_compiled(checker, np.stack([a, 0.5 * (a + b), b]), rng, 0.01)
+        # The compiled searches' calls back into Python (the deadline's clock, the exact
+        # stage) are readied on their first run, tens of milliseconds: run them now, not
+        # in the first plan that looks at its clock or meets a flagged state.
+        from . import _rrt
+
+        _rrt._local.checker, _rrt._local.deadline = checker, None
+        _rrt._late(np.zeros(1, np.int64), np.array([0, 0, 1, 0], np.int64))
+        _rrt._exact_state(a, np.array([1, 0, 0, 0], np.int64))
         _done = True
         return time.perf_counter() - t0
 

@@ -149,3 +149,54 @@ def test_the_trajectory_check_is_sized_before_it_is_allocated(glt):
         tracemalloc.stop()
     assert free
     assert peak < 200e6
+
+
+_NO_COMPILE_AFTER_WARM_UP = """
+from numba.core import event
+from kinematics.library import builtin_model
+from planning.collision import CollisionScene, RobotCollisionModel
+from planning.motion import MotionChecker, plan_motion, warm_up
+
+warm_up()
+
+
+class Count(event.Listener):
+    def __init__(self):
+        self.names = []
+
+    def on_start(self, ev):
+        self.names.append(str(ev.data.get("dispatcher", "")))
+
+    def on_end(self, ev):
+        pass
+
+
+model = builtin_model("glt_palletizer")
+cm = RobotCollisionModel.from_model(model)
+wall = {"type": "box", "id": "w", "size": [200, 2000, 1500],
+        "pose": [[1, 0, 0, 1500], [0, 1, 0, 0], [0, 0, 1, 750], [0, 0, 0, 1]]}
+checker = MotionChecker(cm, CollisionScene.from_dicts([wall]))
+seen = Count()
+with event.install_listener("numba:compile", seen):
+    for _ in range(2):   # the second's checks pass the clock's first look (every 1,024)
+        plan_motion(checker, [-1, 0.3, -0.3, 0, 0.5, 0], [1, 0.3, -0.3, 0, 0.5, 0],
+                    time_limit=5.0, trajectory=False)
+print("COMPILED", len(seen.names), seen.names)
+"""
+
+
+@pytest.mark.slow
+def test_after_the_warm_up_a_plan_compiles_nothing():
+    """In a fresh process, once ``warm_up`` has run, plans whose compiled checks look at the
+    clock compile nothing more (numba's compile events): the searches' calls back into
+    Python are readied by the warm-up, not by the first plan that reaches them."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    done = subprocess.run([sys.executable, "-c", _NO_COMPILE_AFTER_WARM_UP], cwd=root,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    line = next(s for s in done.stdout.splitlines() if s.startswith("COMPILED"))
+    assert line.startswith("COMPILED 0 "), line
