@@ -57,11 +57,11 @@ def warm_up() -> float:
         # The compiled searches' calls back into Python (the deadline's clock, the exact
         # stage) are readied on their first run, tens of milliseconds: run them now, not
         # in the first plan that looks at its clock or meets a flagged state.
-        from . import _rrt
+        from ._rrt import _exact_state, _late, _local
 
-        _rrt._local.checker, _rrt._local.deadline = checker, None
-        _rrt._late(np.zeros(1, np.int64), np.array([0, 0, 1, 0], np.int64))
-        _rrt._exact_state(a, np.array([1, 0, 0, 0], np.int64))
+        _local.checker, _local.deadline = checker, None
+        _late(np.zeros(1, np.int64), np.array([0, 0, 1, 0], np.int64))
+        _exact_state(a, np.array([1, 0, 0, 0], np.int64))
         _done = True
         return time.perf_counter() - t0
 
