@@ -14,10 +14,10 @@ take the picture.
 
 from __future__ import annotations
 
-import argparse
 import sys
 
 import numpy as np
+from screenshots import parser as screenshot_parser  # noqa: E402
 from screenshots import run_job, screenshot
 
 ROBOT = "glt_palletizer"
@@ -76,10 +76,7 @@ def run_task() -> tuple[dict, dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="docs/viewer_carry.png", help="the PNG to write")
-    parser.add_argument("--width", type=int, default=1280)
-    parser.add_argument("--height", type=int, default=860)
+    parser = screenshot_parser(__doc__, "docs/viewer_carry.png")
     parser.add_argument("--share", type=float, default=0.5,
                         help="where in the move from the conveyor to the pallet (0..1)")
     args = parser.parse_args(argv)

@@ -14,12 +14,12 @@ the front right, above. The viewer and Chromium steps are ``tools/screenshots.py
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from screenshots import parser as screenshot_parser  # noqa: E402
 from screenshots import run_job, screenshot  # noqa: E402
 
 ROBOT = "glt_palletizer"
@@ -51,10 +51,7 @@ def carry_moment(params: dict, result: dict, box: int, share: float) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="docs/viewer_pallet.png", help="the PNG to write")
-    parser.add_argument("--width", type=int, default=1280)
-    parser.add_argument("--height", type=int, default=860)
+    parser = screenshot_parser(__doc__, "docs/viewer_pallet.png")
     parser.add_argument("--layers", type=int, default=2, help="interlocked layers planned")
     parser.add_argument("--box", type=int, default=11, help="the box carried (its index)")
     parser.add_argument("--share", type=float, default=0.6,

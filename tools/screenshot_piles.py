@@ -17,7 +17,6 @@ steps are ``tools/screenshots.py``'s.
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import time
@@ -27,6 +26,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from screenshots import FOLDED, run_job, screenshot  # noqa: E402
+from screenshots import parser as screenshot_parser  # noqa: E402
 
 ROBOT = "pile_driver"
 BASE_HEIGHT = 500.0
@@ -74,10 +74,7 @@ def piles_params() -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="docs/viewer_piles.png", help="the PNG to write")
-    parser.add_argument("--width", type=int, default=1280)
-    parser.add_argument("--height", type=int, default=860)
+    parser = screenshot_parser(__doc__, "docs/viewer_piles.png")
     args = parser.parse_args(argv)
 
     started = time.monotonic()

@@ -15,7 +15,6 @@ boom's colour while drilled, dark once done. The viewer and Chromium steps are
 
 from __future__ import annotations
 
-import argparse
 import csv
 import sys
 import time
@@ -24,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from screenshots import parser as screenshot_parser  # noqa: E402
 from screenshots import run_job, screenshot  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -66,10 +66,7 @@ def busiest_moment(result: dict, share: float) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="docs/viewer_round.png", help="the PNG to write")
-    parser.add_argument("--width", type=int, default=1280)
-    parser.add_argument("--height", type=int, default=860)
+    parser = screenshot_parser(__doc__, "docs/viewer_round.png")
     parser.add_argument("--share", type=float, default=0.0,
                         help="look for the busiest moment from this share of the round on")
     args = parser.parse_args(argv)

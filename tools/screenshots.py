@@ -7,6 +7,7 @@ environment map so nothing is fetched), and have Playwright drive Debian's Chrom
 
 from __future__ import annotations
 
+import argparse
 import json
 import re
 import shutil
@@ -114,3 +115,13 @@ def screenshot(kind: str, params: dict, result: dict, out: str | Path, *, job: s
                 browser.close()
         finally:
             viewer.stop()
+
+
+def parser(doc: str, out: str) -> argparse.ArgumentParser:
+    """The options every screenshot script takes: ``--out`` (default ``out``), ``--width``
+    and ``--height`` of the page; a script adds its own."""
+    p = argparse.ArgumentParser(description=doc.splitlines()[0])
+    p.add_argument("--out", default=out, help="the PNG to write")
+    p.add_argument("--width", type=int, default=1280)
+    p.add_argument("--height", type=int, default=860)
+    return p
