@@ -173,17 +173,6 @@ def _near_box(p, reach, box):
 
 
 @njit(**_JIT)
-def _near_scene(p, reach, o, aabb):
-    """Whether ``p`` is within ``reach`` of object ``o``'s bounding box (Euclidean; without
-    branches, for the loop over every object)."""
-    gx = max(aabb[o, 0] - p[0], p[0] - aabb[o, 3], 0.0)
-    gy = max(aabb[o, 1] - p[1], p[1] - aabb[o, 4], 0.0)
-    gz = max(aabb[o, 2] - p[2], p[2] - aabb[o, 5], 0.0)
-    return gx * gx + gy * gy + gz * gz <= reach * reach
-
-
-# ---- pair tables ------------------------------------------------------------------------------
-@njit(**_JIT)
 def _table_flagged(q, margin, tab_i, tab_f, tab_values, hits, n_hits, cap):
     """Flag the pairs whose table lower bound at ``q`` is at most ``margin`` (as
     ``_scene_link``: the new hit count; stops at the first when ``cap == 0``)."""
@@ -535,7 +524,7 @@ def state_bounds(C, prismatic, offset, body, X, ends, w, q, reach, root, root_r,
     for l in range(L):
         for o in range(n_o):
             best = reach
-            if has_scene and _near_scene(Wr[l], reach + root_r[l], o, aabb) \
+            if has_scene and _near_box(Wr[l], reach + root_r[l], aabb[o]) \
                     and object_distance(Wr[l], reach + root_r[l], o, kind, T_inv, par,
                                         balls, cells, set_meta) - root_r[l] < best:
                 _ready(M, l, 2, group, leaf, Wg, Wl, done)
