@@ -48,7 +48,7 @@ from ..geometry.spheres import (
     cylinder_solid,
     sphere_solid,
 )
-from .tables import TABLE_MAX_NODES, TABLE_TOLERANCE, build_pair_table
+from .tables import TABLE_MAX_NODES, TABLE_TOLERANCE, build_pair_table, sweep_ratio
 
 __all__ = ["RobotCollisionModel", "DEFAULT_LINK_RADIUS", "DEFAULT_GROUPS",
            "DEFAULT_SPHERES_PER_GROUP", "MAX_CAPSULE_SPHERES"]
@@ -167,18 +167,31 @@ class RobotCollisionModel:
         tree = _pad_trees(trees)
         tables, by_sphere = [], []
         shapes: dict[int, list] = {}
+        triangles: dict[int, np.ndarray] = {}
+        screen = _TableScreen(robot, tree, index)
         for p, (a, b) in enumerate(pairs):
             table = None
             if pair_tables:
                 inner, outer = sorted((a, b), key=lambda x: robot.links[index[x]].frame)
-                if robot.links[index[outer]].frame - robot.links[index[inner]].frame in (1, 2):
-                    for x in (inner, outer):
-                        if x not in shapes:
-                            shapes[x] = _exact_shapes(robot, index[x])
+                k = robot.links[index[outer]].frame - robot.links[index[inner]].frame
+                for x in (inner, outer):
+                    if k >= 1 and x not in shapes:
+                        shapes[x] = _exact_shapes(robot, index[x])
+                        triangles[x] = _link_triangles(robot.links[index[x]], robot.meshes)
+                for sweep in _SWEEPS.get(k, ()):
+                    if sweep != (False, False) and not screen.sweepable(
+                            inner, outer, sweep, k, triangles):
+                        continue
                     ball = (tree.root[outer, :3], float(tree.root_r[outer]))
                     table = build_pair_table(robot, index[inner], index[outer], ball,
                                              shapes[inner], shapes[outer], table_tolerance,
-                                             table_nodes, a, b, p)
+                                             table_nodes, a, b, p, sweep=sweep,
+                                             triangles_a=triangles[inner],
+                                             triangles_b=triangles[outer])
+                    if table is not None and (sweep == (False, False)
+                                              or screen.better(table, a, b)):
+                        break
+                    table = None
             if table is None:
                 by_sphere.append(p)
             else:
@@ -365,9 +378,20 @@ class RobotCollisionModel:
                 "pair_tables": [{"links": [self.names[x.a], self.names[x.b]],
                                  "joints": [int(j) for j in x.joints],
                                  "nodes": int(len(x.values)),
+                                 "swept": self._swept(x),
                                  "slack": round(x.slack, 3)} for x in self.tables],
                 "attached": self._describe_attached(),
                 "spheres": int(len(t.flat_r)), "options": self.options}
+
+    def _swept(self, table: Any) -> list[str]:
+        """Names of the links a pair table holds turned about a joint (its inner link is
+        ``"a"`` of its ``sweep``, the one nearer the base)."""
+        if not table.sweep:
+            return []
+        frame = [self.source.links[self.link_index[x]].frame for x in (table.a, table.b)]
+        inner, outer = (table.a, table.b) if frame[0] <= frame[1] else (table.b, table.a)
+        return [self.names[x] for x, on in ((inner, "a" in table.sweep),
+                                            (outer, "b" in table.sweep)) if on]
 
     def _describe_attached(self) -> list[dict[str, Any]]:
         t = self.tree
@@ -403,7 +427,7 @@ class RobotCollisionModel:
             for f in ("joints", "lo", "step", "rho", "values"):
                 arrays[f"table{i}_{f}"] = np.asarray(getattr(x, f))
             tables.append({"a": int(x.a), "b": int(x.b), "pair": int(x.pair),
-                           "shape": [int(v) for v in x.shape]})
+                           "shape": [int(v) for v in x.shape], "sweep": x.sweep})
         meta = {"format": MODEL_FORMAT, "kind": self.kind, "names": list(self.names),
                 "dof": int(self.dof), "options": self.options, "tables": tables,
                 "fingerprint": _fingerprint(self.kind, self.source)}
@@ -438,7 +462,8 @@ class RobotCollisionModel:
             tables = tuple(
                 PairTable(t["a"], t["b"], t["pair"], arrays[f"table{i}_joints"],
                           arrays[f"table{i}_lo"], arrays[f"table{i}_step"], tuple(t["shape"]),
-                          arrays[f"table{i}_rho"], arrays[f"table{i}_values"])
+                          arrays[f"table{i}_rho"], arrays[f"table{i}_values"],
+                          t.get("sweep", ""))
                 for i, t in enumerate(meta["tables"]))
             fields = {f: arrays[f] for f in _ARRAY_FIELDS}
         except _FormatError:
@@ -475,7 +500,7 @@ class RobotCollisionModel:
 
 # ---- helpers ------------------------------------------------------------------------------
 #: Version of ``to_bytes``' layout; ``from_bytes`` refuses others.
-MODEL_FORMAT = 1
+MODEL_FORMAT = 2
 
 
 class _FormatError(ValueError):
@@ -521,6 +546,60 @@ def _fingerprint(kind: str, source: Any) -> str:
     return h.hexdigest()
 
 
+#: The pair tables tried for links ``k`` chain joints apart, in order (``sweep_a, sweep_b``:
+#: which link is turned about its swept joint, ``planning.collision.tables``): one or two
+#: joints apart, the plain table; three, link b turned about its own joint (a wrist flange,
+#: a tool), else link a about the next; four, both.
+_SWEEPS = {1: ((False, False),), 2: ((False, False),), 3: ((False, True), (True, False)),
+           4: ((True, True),)}
+#: A link is swept only if its swept solid has at most this volume over its hull's (nearly a
+#: solid of revolution about that joint); a swept table is kept only if it flags fewer of
+#: ``TABLE_SCREEN_SAMPLES`` random configurations (seed ``TABLE_SCREEN_SEED``) than the
+#: spheres do.
+SWEEP_VOLUME_RATIO = 1.7
+TABLE_SCREEN_SAMPLES = 512
+TABLE_SCREEN_SEED = 20261202
+
+
+class _TableScreen:
+    """Whether a swept table is worth its place: random configurations within the limits,
+    and the sphere stage's bound of a pair there, to compare a table with."""
+
+    def __init__(self, robot: Any, tree: _Tree, index: list[int]) -> None:
+        self.robot, self.tree, self.index = robot, tree, index
+        model = robot.model
+        rng = np.random.default_rng(TABLE_SCREEN_SEED)
+        self.Q = rng.uniform(model.lower, model.upper, (TABLE_SCREEN_SAMPLES, model.dof))
+        self._poses: np.ndarray | None = None
+        self._ratio: dict[tuple[int, int], float] = {}
+
+    def sweepable(self, inner: int, outer: int, sweep: tuple, k: int,
+                  triangles: dict) -> bool:
+        frame = self.robot.links[self.index[inner]].frame
+        for on, x, joint in ((sweep[0], inner, frame), (sweep[1], outer, frame + k - 1)):
+            if not on:
+                continue
+            key = (x, joint)
+            if key not in self._ratio:
+                self._ratio[key] = sweep_ratio(self.robot, self.index[x], joint, triangles[x])
+            if self._ratio[key] > SWEEP_VOLUME_RATIO:
+                return False
+        return True
+
+    def better(self, table: Any, a: int, b: int) -> bool:
+        """Whether ``table`` flags fewer of the configurations than the spheres of
+        collision-model links ``a`` and ``b``."""
+        if self._poses is None:
+            self._poses = self.robot.link_poses(self.Q)[:, self.index]
+        t, P = self.tree, self._poses
+        A = np.einsum("bij,sj->bsi", P[:, a, :3], t.flat[t.flat_link == a])
+        C = np.einsum("bij,sj->bsi", P[:, b, :3], t.flat[t.flat_link == b])
+        d = (np.linalg.norm(A[:, :, None] - C[:, None], axis=-1)
+             - t.flat_r[t.flat_link == a][:, None] - t.flat_r[t.flat_link == b][None])
+        spheres = int((d.reshape(len(self.Q), -1).min(axis=1) <= 0).sum())
+        return int((table.lower_bound(self.Q) <= 0).sum()) < spheres
+
+
 def _pair_array(pairs: list[tuple[int, int]]) -> np.ndarray:
     return np.array(pairs, dtype=np.intp).reshape(-1, 2)
 
@@ -546,6 +625,16 @@ def _link_geometry(link: Any, meshes: Any) -> tuple[np.ndarray, list]:
                              f"{g.kind!r}")
     tri = np.concatenate(triangles) if triangles else np.empty((0, 3, 3))
     return tri, solids
+
+
+def _link_triangles(link: Any, meshes: Any) -> np.ndarray:
+    """A link's collision geometry in its frame as triangles ``(T, 3, 3)``: its meshes'
+    and the hull faces of its primitives' circumscribing polytopes."""
+    from scipy.spatial import ConvexHull
+
+    tri, solids = _link_geometry(link, meshes)
+    parts = [tri] + [s.vertices[ConvexHull(s.vertices).simplices] for s in solids]
+    return np.concatenate(parts)
 
 
 def _exact_shapes(robot: Any, k: int) -> list:
