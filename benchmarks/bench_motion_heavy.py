@@ -29,8 +29,9 @@ the timed trajectory on 400 samples. A path that fails is not counted as verifie
 Printed per machine: problems, direct, solved, verified, median and 95th-percentile planning
 time (``planning_time_s``: search + simplification), median joint-space length (rad, mm / 100
 on prismatic joints ... as ``MotionResult.length``: rad + mm), median least clearance (mm),
-median trajectory duration (s); failures with their messages. The machine has 2 cores shared
-by everyone: times are noisy.
+median trajectory duration (s), median states checked per plan (``stats["checks"]``, a
+stretch proved by its sweep counting its one or two) and exact checks; failures with their
+messages. The machine has 2 cores shared by everyone: times are noisy.
 
 Run: ``.venv/bin/python benchmarks/bench_motion_heavy.py [--cases 10] [--problems 20]
 [--pallet-problems 10] [--time-limit 5] [--seed 0] [--skip-jobs] [--skip-sites]
@@ -165,7 +166,8 @@ def sites(n: int, n_pallet: int, time_limit: float, seed: int, step: float) -> d
     ]
     out = {}
     print(f"\n{'machine':17s} {'n':>3s} {'direct':>6s} {'solved':>6s} {'verif':>5s} "
-          f"{'med t s':>8s} {'p95 t s':>8s} {'med len':>8s} {'med clr':>8s} {'med dur':>8s}")
+          f"{'med t s':>8s} {'p95 t s':>8s} {'med len':>8s} {'med clr':>8s} {'med dur':>8s} "
+          f"{'med chk':>8s} {'exact':>6s}")
     for robot, site, problems_of, count in cases:
         t0 = time.perf_counter()
         model, scene = site()
@@ -177,6 +179,7 @@ def sites(n: int, n_pallet: int, time_limit: float, seed: int, step: float) -> d
                     seed=10**6)  # first-use costs
         direct = 0
         times, lengths, clear, durations, failures = [], [], [], [], []
+        checks, exact_checks = [], []
         solved = verified = 0
         for k, p in enumerate(problems):
             direct += bool(checker.segment_free(p.start, p.goal))
@@ -186,6 +189,8 @@ def sites(n: int, n_pallet: int, time_limit: float, seed: int, step: float) -> d
                 continue
             solved += 1
             times.append(res.planning_time_s)
+            checks.append(res.stats.get("checks", 0))
+            exact_checks.append(res.stats.get("exact_checks", 0))
             ok, why = verify(cm, scene, model, res, p.start, p.goal, step)
             if not ok:
                 failures.append((k, p.kind, "unverified", why))
@@ -202,11 +207,14 @@ def sites(n: int, n_pallet: int, time_limit: float, seed: int, step: float) -> d
                       "median_time_s": _median(times), "p95_time_s": _p95(times),
                       "median_length": _median(lengths), "median_clearance_mm":
                       _median(clear), "median_duration_s": _median(durations),
+                      "median_checks": _median(checks),
+                      "median_exact_checks": _median(exact_checks),
                       "setup_s": setup, "failures": failures}
         r = out[robot]
         print(f"{robot:17s} {len(problems):3d} {direct:6d} {solved:6d} {verified:5d} "
               f"{r['median_time_s']:8.3f} {r['p95_time_s']:8.3f} {r['median_length']:8.2f} "
-              f"{r['median_clearance_mm']:8.1f} {r['median_duration_s']:8.2f}")
+              f"{r['median_clearance_mm']:8.1f} {r['median_duration_s']:8.2f} "
+              f"{r['median_checks']:8.0f} {r['median_exact_checks']:6.0f}")
         for k, kind, status, msg in failures:
             print(f"    problem {k} ({kind}): {status}: {msg}")
     return out

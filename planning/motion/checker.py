@@ -12,7 +12,15 @@ therefore certain, and a "collides" answer is the exact one.
 Joint steps: a segment is checked at states no farther apart than ``resolution`` rad on every
 revolute joint and ``resolution * PRISMATIC_STEP`` mm on every prismatic one (1 mm at the
 default 0.01). In the planners' metric a prismatic joint's ``PRISMATIC_SCALE`` mm count as
-one radian (1 m: as far as a point 1 m from a revolute axis moves).
+one radian (1 m: as far as a point 1 m from a revolute axis moves). With the compiled kernels
+a stretch of that grid is proved free at once when its middle state is clear by the distance
+any point of the robot can sweep within the stretch (``planning.motion._rrt.sweeps``: per
+joint, its move times the largest distance from its axis of the geometry beyond it; up to
+``SWEEP_MARGIN_MAX`` mm, by the spheres or the exact stage): such a stretch is free
+everywhere, so a telescope's metres cost a few dozen checked states instead of one per mm,
+and a thin obstacle between two grid states is refused where a proved stretch would cross
+it. A stretch not proved is cut at its middle state, down to single grid steps: no two
+checked states of it are farther apart than ``resolution``, as before.
 
 Deadlines: while ``deadline`` (a ``time.perf_counter`` time) is set, a segment check looks at
 the clock every ``DEADLINE_CHUNK`` states and answers "not free" once it has passed, so a
@@ -36,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from kinematics.errors import FieldError
+from planning.geometry.registry import KERNEL_CODES
 
 __all__ = ["MotionChecker", "PRISMATIC_SCALE", "PRISMATIC_STEP", "DEFAULT_RESOLUTION",
            "MIN_RESOLUTION", "bisection_order", "segment_states"]
@@ -57,6 +66,10 @@ _ORDER_CACHE_N = 1 << 16
 _ORDER_CACHE_SIZE = 4096
 #: Most flagged pairs collected for the exact stage of one configuration.
 _HIT_CAP = 256
+#: The scene's boxes and cylinders, and the largest link mesh (triangles) whose collisions
+#: with them the exact stage settles in compiled code (``planning.geometry.triangles``).
+_SOLIDS = (KERNEL_CODES["box"], KERNEL_CODES["cylinder"])
+TRIANGLES_MAX = 5000
 #: Caps (mm) of the sphere bounds ``clearance`` tries in turn before its ``reach``.
 CLEARANCE_CAPS = (32.0, 128.0, 512.0)
 #: Scenes with more objects than this are screened by their distance grid.
@@ -113,7 +126,9 @@ class MotionChecker:
     docstring). ``lower``/``upper``: joint limits (default: the robot model's); ``margin``
     (mm): closer than that counts as a collision; ``exact``: confirm the spheres' hits on
     the real shapes (False: a flagged state counts as colliding, faster and more cautious).
-    ``checks``/``exact_checks`` count the states checked."""
+    ``checks``/``exact_checks`` count the states checked. Segments: ``resolution`` sets
+    the grid (``steps``); stretches of it are proved free by the distance they sweep, the
+    rest checked state by state (module docstring)."""
 
     def __init__(self, collision_model: Any, scene: Any = None, *, lower=None, upper=None,
                  self_collision: bool = True, margin: float = 0.0, exact: bool = True) -> None:
@@ -203,9 +218,10 @@ class MotionChecker:
             ok[b] = self._exact_free(Q2[b])
         return bool(ok[0]) if single else ok
 
-    def _exact_free(self, q: np.ndarray) -> bool:
+    def _exact_free(self, q: np.ndarray, extra: float = 0.0) -> bool:
         """The exact stage of one flagged configuration (with ``exact`` off, only within
-        ``exact_zone``)."""
+        ``exact_zone``), at the margin plus ``extra`` mm (a segment's sweep about a state:
+        ``segment_free``)."""
         if not self.exact:
             zone = self.exact_zone
             if zone is None:
@@ -214,17 +230,46 @@ class MotionChecker:
             if float(np.einsum("ij,ij->i", d, d).min()) > zone[1] ** 2:
                 return False
         self.exact_checks += 1
+        margin = self.margin + float(extra)
         k = self._k
         hits = np.empty((_HIT_CAP, 3), dtype=np.int64)
         M = np.empty((len(self.cm.names), 3, self._robot[6]))
-        n = k.state_hits(*self._robot[:7], np.ascontiguousarray(q), self.margin,
+        n = k.state_hits(*self._robot[:7], np.ascontiguousarray(q), margin,
                          *self._robot[7:13], *self._scene, self._robot[13],
                          *self._robot[14:], hits, M)
         if n >= _HIT_CAP:
             from planning.collision import collides
 
             return not bool(collides(self.cm, q, self.scene, self.self_collision, exact=True,
-                                     margin=self.margin))
+                                     margin=margin))
+        # A mesh link against a box or cylinder of the scene is settled in compiled code, the
+        # other pairs by FCL. At margin 0 the tests are FCL's yes/no. A sweep's proof
+        # (``extra`` > 0) may refuse what is clear (the stretch is then checked more
+        # finely), never accept what is not: the object grown by the margin on every side
+        # contains every point within the margin of it, so triangles that miss the grown
+        # object are farther than the margin.
+        proof = extra > 0.0
+        rest = []
+        tri = self._mesh_triangles() if margin == 0.0 or proof else None
+        if tri is not None:
+            from planning.geometry.triangles import triangles_meet_object
+        kind, T_inv, par = self._scene[1], self._scene[2], self._scene[3]
+        for a, c, is_self in hits[:n]:
+            a, c = int(a), int(c)
+            if tri is not None and not is_self and tri.whole[a] and kind[c] in _SOLIDS:
+                grown = par[c].copy()
+                if margin > 0.0:
+                    grown[:3 if kind[c] == _SOLIDS[0] else 2] += margin
+                if triangles_meet_object(tri.tri, tri.lo, tri.hi, tri.first[a],
+                                         tri.first[a + 1], M[a], T_inv[c], kind[c], grown):
+                    return False
+            else:
+                rest.append((a, c, is_self))
+        if not rest:
+            return True
+        if proof and tri is not None:
+            # FCL's distance between meshes costs more than checking the stretch finely.
+            return False
         from planning.collision import exact_stage
 
         stage = exact_stage(self.cm, self.scene)
@@ -232,17 +277,44 @@ class MotionChecker:
             self._fcl = _FastExact(stage)
         fast = self._fcl
         posed: dict[int, list] = {}
-        for a, c, is_self in hits[:n]:
-            a, c = int(a), int(c)
+        for a, c, is_self in rest:
             if fast.ok and (is_self or stage.is_fcl(c)):
-                if fast.collides(M, a, c, bool(is_self), posed, self.margin):
+                if fast.collides(M, a, c, bool(is_self), posed, margin):
                     return False
-            elif stage.pair_collides(M, a, c, bool(is_self), self.margin):
+            elif stage.pair_collides(M, a, c, bool(is_self), margin):
                 return False
         return True
 
+    def _mesh_triangles(self) -> Any:
+        """``MeshTriangles`` of the links whose geometry is all meshes of at most
+        ``TRIANGLES_MAX`` triangles (an imported robot's; larger meshes stay with FCL's
+        bounding volume trees), built once; None for a robot of capsules."""
+        got = self.__dict__.get("_tri", False)
+        if got is not False:
+            return got
+        tri = None
+        cm = self.cm
+        if cm.kind == "imported":
+            from planning.collision.robot import _link_geometry
+            from planning.geometry.triangles import MeshTriangles
+
+            links = []
+            for k in range(len(cm.names)):
+                t = None
+                if k < len(cm.link_index):
+                    link = cm.source.links[cm.link_index[k]]
+                    t, solids = _link_geometry(link, cm.source.meshes)
+                    if solids or len(t) > TRIANGLES_MAX:
+                        t = None
+                links.append(t)
+            tri = MeshTriangles(links)
+        self._tri = tri
+        return tri
+
     def steps(self, a: np.ndarray, b: np.ndarray, resolution: float) -> int:
-        """Steps of the segment ``a``-``b`` so that no joint moves more than its step."""
+        """Steps of the segment ``a``-``b`` so that no joint moves more than its step: the
+        grid ``segment_free`` works on (its stretches proved by their sweep, module
+        docstring)."""
         d = float(np.max(np.abs(b - a) * self.step_weights)) if self.dof else 0.0
         return max(1, int(math.ceil(d / resolution - 1e-12)))
 
@@ -262,44 +334,54 @@ class MotionChecker:
     def segment_free(self, a, b, resolution: float = DEFAULT_RESOLUTION,
                      ends: bool = False) -> bool:
         """Whether the straight segment ``a``-``b`` is free at joint steps of at most
-        ``resolution`` (its interior; the end points too with ``ends``)."""
+        ``resolution`` (its interior; the end points too with ``ends``): with the compiled
+        kernels, stretches of the grid proved free by the distance they sweep (module
+        docstring) and the rest state by state."""
         a = np.ascontiguousarray(a, dtype=float)
         b = np.ascontiguousarray(b, dtype=float)
         if ends and not bool(np.all(self.free(np.stack([a, b])))):
             return False
+        if self._k is not None:
+            return self._segment_swept(a, b, resolution)
         n = self.steps(a, b, resolution)
         order = self._order(n)
         if len(order) == 0:
             return True
-        if self._k is None:
-            for c in range(0, len(order), DEADLINE_CHUNK):
-                if self.late():
-                    return False
-                s = order[c:c + DEADLINE_CHUNK] / n
-                if not bool(np.all(self.free(a + (b - a) * s[:, None]))):
-                    return False
-            return True
-        k = self._k
-        q = self._q
-        start = 0
-        r, s = self._robot, self._scene
-        total = len(order)
-        timed = self.deadline is not None
-        while True:
-            end = min(total, start + DEADLINE_CHUNK) if timed else total
-            i = k.segment_first(*r[:7], a, b, n, order[:end], start, self.margin, *r[7:13],
-                                *s, r[13], *r[14:], q)
-            self.checks += i - start + (i < end)
-            if timed and self.late():
+        for c in range(0, len(order), DEADLINE_CHUNK):
+            if self.late():
                 return False
-            if i >= end:
-                if end == total:
-                    return True
-                start = end
-                continue
-            if not self._exact_free(q):
+            s = order[c:c + DEADLINE_CHUNK] / n
+            if not bool(np.all(self.free(a + (b - a) * s[:, None]))):
                 return False
-            start = i + 1
+        return True
+
+    def _segment_swept(self, a: np.ndarray, b: np.ndarray, resolution: float) -> bool:
+        """``segment_free``'s interior on the compiled kernels: the grid of ``steps``, its
+        stretches proved free by the distance they sweep where the margin allows
+        (``planning.motion._rrt._segment_free``), the exact stage in Python."""
+        import planning.motion._rrt as rr
+
+        work = self.__dict__.get("_work")
+        if work is None:
+            work = rr.make_work(self._robot, self._scene,
+                                np.ascontiguousarray(self.step_weights))
+            self._work = work
+        count, mode = work[-2], work[-1]
+        saved = mode.copy()
+        local = (getattr(rr._local, "checker", None), getattr(rr._local, "deadline", None))
+        mode[0] = 1                 # flagged states to ``_exact_free`` (which knows ``exact``)
+        mode[2] = 0 if self.deadline is None else 1
+        mode[3] = 0
+        rr._local.checker = self
+        rr._local.deadline = self.deadline
+        c0 = int(count[0])
+        try:
+            return bool(rr._segment_free(self._robot, self._scene, a, b, self.weights,
+                                         float(resolution), self.margin, self._q, work))
+        finally:
+            self.checks += int(count[0]) - c0
+            mode[:] = saved
+            rr._local.checker, rr._local.deadline = local
 
     def path_free(self, path, resolution: float = DEFAULT_RESOLUTION) -> bool:
         """Whether every waypoint of ``path (K, dof)`` and every straight segment between
@@ -350,8 +432,8 @@ class MotionChecker:
     def _least_distance(self, Q: np.ndarray, reach: float) -> float:
         """The exact least distance over the states ``Q`` if it is below ``reach``, else
         ``reach``: sphere lower bounds capped at ``reach`` for every state and pair, then the
-        exact distance of the pairs whose bound is below the least exact distance found so
-        far, states in the order of their least bound."""
+        exact distance of (state, pair)s in the order of their bounds, until the bounds reach
+        the least exact distance found."""
         r, sc = self._robot, self._scene
         L, n_o = len(self.cm.names), len(sc[1])
         S = len(Q)
@@ -361,27 +443,25 @@ class MotionChecker:
         M_all = np.empty((S, L, 3, r[6]))
         self._k.states_bounds(*r[:7], np.ascontiguousarray(Q, dtype=float), reach,
                               *r[7:13], *sc, *r[13:], out_scene, out_self, out_tab, M_all)
-        lb = np.full(S, reach)
-        for part in (out_scene, out_self, out_tab):
-            if part[0].size:
-                lb = np.minimum(lb, part.reshape(S, -1).min(axis=1))
-        bounds = [(float(lb[i]), out_scene[i], out_self[i], out_tab[i], M_all[i])
-                  for i in np.argsort(lb, kind="stable")]
+        # Best first over every (state, pair) whose bound is below the cap: the exact
+        # distance of the lowest bound first, none once the bounds reach the least exact
+        # distance found (the same answer as state by state, fewer FCL calls, no Python
+        # loop over the states).
+        s_o, l_o, o_o = np.nonzero(out_scene < reach)
+        s_p, k_p = np.nonzero(out_self < reach)
+        s_t, k_t = np.nonzero(out_tab < reach)
+        bound = np.concatenate([out_scene[s_o, l_o, o_o], out_self[s_p, k_p],
+                                out_tab[s_t, k_t]])
+        state = np.concatenate([s_o, s_p, s_t])
+        a = np.concatenate([l_o, r[13][k_p, 0], r[14][k_t, 6]]).astype(np.intp)
+        c = np.concatenate([o_o, r[13][k_p, 1], r[14][k_t, 7]]).astype(np.intp)
+        is_self = np.r_[np.zeros(len(s_o), bool), np.ones(len(s_p) + len(s_t), bool)]
         best = reach
-        for lb, out_scene, out_self, out_tab, M in bounds:
-            if lb >= best:
+        for i in np.argsort(bound, kind="stable"):
+            if bound[i] >= best:
                 break
-            items = [(float(out_scene[a, o]), a, o, False)
-                     for a, o in zip(*np.nonzero(out_scene < best))]
-            items += [(float(out_self[k]), int(r[13][k, 0]), int(r[13][k, 1]), True)
-                      for k in np.flatnonzero(out_self < best)]
-            items += [(float(out_tab[k]), int(r[14][k, 6]), int(r[14][k, 7]), True)
-                      for k in np.flatnonzero(out_tab < best)]
-            items.sort()
-            for d_lb, a, c, is_self in items:
-                if d_lb >= best:
-                    break
-                best = min(best, self._exact_distance(M, int(a), int(c), is_self, best))
+            best = min(best, self._exact_distance(M_all[state[i]], int(a[i]), int(c[i]),
+                                                  bool(is_self[i]), best))
         return float(best)
 
     def _exact_distance(self, M: np.ndarray, a: int, c: int, is_self: bool,

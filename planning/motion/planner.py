@@ -18,8 +18,9 @@ s, a start or goal the spheres flag being first left by a short path checked on 
 shapes (``search.escape``); if that finds nothing (a passage narrower than the spheres'
 slack), again settling every flagged state exactly for the rest of the time. Without
 compiled kernels RRT-Connect runs in Python (``search.rrt_connect``). The path is then
-shortened with the checker that found it (compiled), and checked once more before it is
-answered. ``auto`` with a time limit past ``AUTO_REFINE_AFTER`` s also hands the shortened
+shortened with the checker that found it (compiled, every segment of the answer checked at
+the resolution as it is shortened; a path shortened in Python is checked once more before
+it is answered). ``auto`` with a time limit past ``AUTO_REFINE_AFTER`` s also hands the shortened
 path to RRT* as the bound to beat until ``AUTO_REFINE_SHARE`` of the time, then shortens the
 best path again. ``rrt_star`` searches with RRT* for the whole time limit.
 
@@ -406,6 +407,7 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
     s_deadline = t_simplify + max(SIMPLIFY_MIN_S,
                                   min(0.5 * time_limit, t0 + time_limit - t_simplify))
     checker.deadline = s_deadline
+    certified = False       # every segment checked at ``resolution`` by the simplification
     if simplify and len(path) > 2:
 
         def s_stop() -> bool:
@@ -414,6 +416,7 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
         if mode is not None:
             # Compiled, with the checker the path was found with.
             path = shortcut_compiled(checker, path, rng, resolution, exact=mode == "exact")
+            certified = True
         else:
             checker.exact = False
             path = shortcut(checker, path, rng, s_stop, resolution)
@@ -433,12 +436,16 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
                 path = shortcut(checker, better, rng,
                                 lambda: time.perf_counter() >= s_deadline + 1.0, resolution)
                 used = "rrt_connect+rrt_star"
+                certified = False
     checker.exact, checker.exact_zone = exact, None
     checker.deadline = max(time.perf_counter(), s_deadline) + FINISH_S
-    if len(path) != stats["raw_waypoints"] and not checker.path_free(path, resolution):
+    if len(path) != stats["raw_waypoints"] and not certified \
+            and not checker.path_free(path, resolution):
         # The path as found (every edge checked at ``resolution``) is answered instead: the
         # time limit ended the check, or (never expected: every shortcut checks what it
-        # keeps) the check failed.
+        # keeps) the check failed. The compiled simplification checks every segment of its
+        # answer at ``resolution`` itself (``shortcut_compiled``): checking it again here
+        # would repeat the same states with the same kernels.
         stats["simplified_path_rejected"] = "time limit" if checker.late() else True
         path = raw
     simplify_time = time.perf_counter() - t_simplify

@@ -279,6 +279,15 @@ def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.nd
 #: The compiled shortcuts first check their new segments at this many times the
 #: resolution, then every segment of the result at the resolution (``shortcut_compiled``).
 SHORTCUT_LAZY = 4
+#: A shortcut gaining less than this share of the path's length is not tried: most
+#: successes of a run are such slivers, each checked over its whole (long) segment; without
+#: them a run costs about half the states, for paths 0.5 % longer.
+SHORTCUT_LEAST_GAIN = 1e-3
+#: A lazily checked segment that fails at the resolution is bent around the state at fault
+#: (``planning.motion._rrt.refine_path``): draws of the bend, and bends per path at most,
+#: before the shortcuts start again at the resolution.
+REPAIR_TRIES = 20
+REPAIR_MOST = 8
 
 
 def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.Generator,
@@ -288,15 +297,19 @@ def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.G
     flagged states on the exact shapes; the path as it is without compiled kernels. Every
     segment of ``path`` must have been checked free at ``resolution`` (at its
     ``MotionChecker.steps``): a shortcut keeps pieces of them without checking them again
-    (``planning.motion._rrt.shortcut_run``)."""
+    (``planning.motion._rrt.shortcut_run``), and every segment of the answer is checked at
+    ``resolution`` here (by the shortcuts at it, or by ``refine_path`` after the lazy
+    pass), so the answer needs no check after it."""
     got = _compiled(checker)
     if got is None or len(path) <= 2:
         return path
     rr, work = got
     n = len(path)
-    buf = np.empty((n + 2 * attempts + 4, checker.dof))
+    buf = np.empty((n + 2 * attempts + 3 * REPAIR_MOST + 4, checker.dof))
     buf[:n] = path
     w = np.ascontiguousarray(checker.weights)
+    lo = np.ascontiguousarray(checker.lower, dtype=float)
+    hi = np.ascontiguousarray(checker.upper, dtype=float)
     state = np.array([int(rng.integers(1, 2**63 - 1))], dtype=np.uint64)
     count, mode = work[-2], work[-1]
     mode[0] = 1 if exact else 0
@@ -307,7 +320,8 @@ def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.G
     fine = float(resolution)
     for step in (SHORTCUT_LAZY * fine, fine) if SHORTCUT_LAZY > 1 else (fine,):
         # First with new segments checked at a coarser step, then each segment not yet
-        # checked at ``resolution`` checked at it; if one fails, again at ``resolution``.
+        # checked at ``resolution`` checked at it (bent where it fails); if that fails,
+        # again at ``resolution``.
         buf[:len(path)] = path
         n = len(path)
         state[:] = seed
@@ -315,9 +329,14 @@ def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.G
         rr.fill_steps(buf, n, fine, work, ns)
         n = rr.reduce_path(R, S, buf, n, w, step, margin, work, ns)
         n = rr.shortcut_run(R, S, buf, n, w, step, margin, int(attempts), int(patience),
-                            state, work, ns)
+                            state, work, ns, SHORTCUT_LEAST_GAIN)
         n = rr.reduce_path(R, S, buf, n, w, step, margin, work, ns)
-        if step == fine or rr.refine_steps(R, S, buf, n, w, fine, margin, work, ns):
+        if step == fine:
+            break
+        m = rr.refine_path(R, S, buf, n, w, fine, margin, work, ns, lo, hi, state,
+                           REPAIR_TRIES, REPAIR_MOST)
+        if m > 0:
+            n = m
             break
     checker.checks += int(count[0]) - c0
     return buf[:n].copy()

@@ -11,27 +11,14 @@ import math
 
 import numpy as np
 import pytest
-from test_motion import ARM, BALL, GANTRY, box
+from test_motion import BALL, box
 
-from kinematics.urdf_import import import_robot
-from planning.collision import CollisionScene, RobotCollisionModel, collides
+from planning.collision import CollisionScene, collides
 from planning.motion import MotionChecker, plan_motion
 from planning.motion.checker import CLEARANCE_CAPS
 
 pytest.importorskip("fcl")
 pytestmark = pytest.mark.usefixtures("motion_kernels")
-
-
-@pytest.fixture(scope="module")
-def gantry_cm():
-    return RobotCollisionModel.from_imported(import_robot(GANTRY.encode(), "gantry.urdf",
-                                                          robot_id="gantry"))
-
-
-@pytest.fixture(scope="module")
-def arm_cm():
-    return RobotCollisionModel.from_imported(import_robot(ARM.encode(), "arm2.urdf",
-                                                          robot_id="arm2"))
 
 
 # ---- clearance ------------------------------------------------------------------------------
