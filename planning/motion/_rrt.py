@@ -122,6 +122,12 @@ def _steps(a, b, wt, res):
 #: the segment about it free (``_segment_free``): a larger one flags almost every state of a
 #: machine working close to a rock face or to itself, and costs more to check.
 SWEEP_MARGIN_MAX = 100.0
+#: Proofs are tried while they pay: the first ``PROOF_TRIALS`` of a checker, then while a
+#: quarter of them succeed (the counts halved every ``PROOF_WINDOW`` tries), else on every
+#: 64th checked state only. A tunnel arm's succeed 9 times in 10; a Panda's among shelves
+#: seldom (a 0.01 rad step sweeps 5-10 mm there), and each failure costs a check more.
+PROOF_TRIALS = 16
+PROOF_WINDOW = 256
 #: Least number of grid steps a stretch must span for a state to be checked with a margin
 #: for it (a shorter stretch is cheaper to check state by state).
 SWEEP_MIN_SPAN = 4
@@ -248,20 +254,31 @@ def _exact_margin(q, extra, qx, mode):
 
 
 @njit(**_JIT)
+def _proving(count):
+    """Whether to try a sweep's proof (``PROOF_TRIALS``; ``count[1]`` tries and
+    ``count[2]`` successes so far)."""
+    if count[1] >= PROOF_WINDOW:
+        count[1] //= 2
+        count[2] //= 2
+    return count[1] < PROOF_TRIALS or 4 * count[2] >= count[1] or (count[0] & 63) == 0
+
+
+@njit(**_JIT)
 def _segment_free(R, S, a, b, wt, res, margin, q, work):
     """Whether the segment strictly between ``a`` and ``b`` is free, on the grid of
     ``_steps`` (joint steps at most ``res``, weighted by the step weights in ``work``; the
-    scratch tuple; counts in ``work[-2][0]``). The grid's stretches are taken in bisection
-    order (the whole segment, its halves, ...). A stretch whose middle state is clear by
-    the margin its sweep asks (``sweeps``: the scene's bound times the farthest part of
-    the segment from the middle, the self pairs' likewise), by the spheres or, for a
-    stretch of ``SWEEP_EXACT_SPAN`` grid steps or more, by the exact stage, is free
-    everywhere: every point of the robot in the stretch is within that distance of where
-    it is in the middle state. Otherwise (a stretch shorter than ``SWEEP_MIN_SPAN``, its
-    margin above ``SWEEP_MARGIN_MAX``, or its middle state not clear by it) the middle
-    state itself must be free and the two halves are taken in turn; a stretch of one grid
-    step is free when its ends are (grid states at most ``res`` apart, as without
-    sweeps)."""
+    scratch tuple; checked states in ``work[-2][0]``, proofs tried and proved in ``[1]``
+    and ``[2]``). The grid's stretches are taken in bisection order (the whole segment,
+    its halves, ...). A stretch whose middle state is clear by the margin its sweep asks
+    (``sweeps``: the scene's bound times the farthest part of the segment from the
+    middle, the self pairs' likewise), by the spheres or, for a stretch of
+    ``SWEEP_EXACT_SPAN`` grid steps or more, by the exact stage, is free everywhere: every
+    point of the robot in the stretch is within that distance of where it is in the middle
+    state. Otherwise (a stretch shorter than ``SWEEP_MIN_SPAN``, its margin above
+    ``SWEEP_MARGIN_MAX``, proofs that seldom succeed for this checker (``_proving``), or
+    its middle state not clear by it) the middle state itself must be free and the two
+    halves are taken in turn; a stretch of one grid step is free when its ends are (grid
+    states at most ``res`` apart, as without sweeps)."""
     T, F, M, hits, Wr, Wg, Wl, done, all_o, near_r, near_g, sw, count, mode = work
     if mode[3] != 0:
         return False
@@ -302,18 +319,22 @@ def _segment_free(R, S, a, b, wt, res, margin, q, work):
             m_scene = s_scene * h
             m_self = s_self * h
             m_both = max(m_scene, m_self)
-            if i1 - i0 >= SWEEP_MIN_SPAN and m_both <= SWEEP_MARGIN_MAX:
+            if i1 - i0 >= SWEEP_MIN_SPAN and m_both <= SWEEP_MARGIN_MAX and _proving(count):
                 count[0] += 1
+                count[1] += 1
                 if _late(count, mode):
                     return False
                 if _spheres_clear(R0, S, q, margin + m_scene, T, F, M, hits, scr) and (
                         not own or _spheres_clear(R, S0, q, margin + m_self, T, F, M,
                                                   hits, scr)):
+                    count[2] += 1
                     continue
             # The spheres' slack (a tunnel's mesh balls) may be all that flags it.
-            if i1 - i0 >= SWEEP_EXACT_SPAN and m_both <= SWEEP_EXACT_MAX \
-                    and _exact_margin(q, m_both, qx, mode):
-                continue
+            if i1 - i0 >= SWEEP_EXACT_SPAN and m_both <= SWEEP_EXACT_MAX and _proving(count):
+                count[1] += 1
+                if _exact_margin(q, m_both, qx, mode):
+                    count[2] += 1
+                    continue
             count[0] += 1
             if _late(count, mode):
                 return False
@@ -339,7 +360,7 @@ def make_work(R, S, sw):
                                                        S[1].shape[0])
     return (np.empty((3, 4)), np.empty((E, 3, 4)), np.empty((L, 3, R[6])),
             np.empty((1, 3), dtype=np.int64), Wr, Wg, Wl, done, all_o, near_r, near_g,
-            sw.copy(), np.zeros(1, dtype=np.int64), np.zeros(4, dtype=np.int64))
+            sw.copy(), np.zeros(3, dtype=np.int64), np.zeros(4, dtype=np.int64))
 
 
 # ---- trees ------------------------------------------------------------------------------------

@@ -149,3 +149,21 @@ def test_drill_arm_plans_in_the_tunnel_are_free_at_half_the_resolution(drill_arm
         res = plan_motion(checker, p.start, p.goal, time_limit=5.0, seed=k,
                           trajectory=False)
         _verified(model, cm, scene, p, res)
+
+
+def test_proofs_are_tried_while_they_pay():
+    """A checker tries proofs for its first 16, then while a quarter succeed, else on every
+    64th checked state; the counts are halved every 256 tries (recent ones weigh more)."""
+    from planning.motion._rrt import PROOF_TRIALS, PROOF_WINDOW, _proving
+
+    def tries(checked, tried, proved):
+        count = np.array([checked, tried, proved], dtype=np.int64)
+        return bool(_proving(count)), count.tolist()
+
+    assert tries(1, 0, 0)[0]
+    assert tries(1, PROOF_TRIALS - 1, 0)[0]
+    assert not tries(1, PROOF_TRIALS, 0)[0]             # 16 failures: stop
+    assert tries(64, PROOF_TRIALS, 0)[0]                # but look again now and then
+    assert tries(1, 40, 10)[0] and not tries(1, 40, 9)[0]
+    ok, after = tries(1, PROOF_WINDOW, 60)
+    assert after == [1, PROOF_WINDOW // 2, 30] and not ok
