@@ -3,8 +3,9 @@
 The kernels are compiled once per machine (``cache=True``: tens of seconds the first time,
 then loaded from ``__pycache__`` in about a second per process). ``warm_up`` runs every one
 of them once on a small problem (a built-in robot's capsule model among a few primitives, and
-a search and a shortcut), so that a plan's time limit never pays for it; ``start_warm_up``
-does that in a background thread. Safe to call again: the second call returns at once.
+a search and a shortcut; the exact stage's mesh test on one triangle), so that a plan's
+time limit never pays for it; ``start_warm_up`` does that in a background thread. Safe to
+call again: the second call returns at once.
 """
 
 from __future__ import annotations
@@ -62,6 +63,15 @@ def warm_up() -> float:
         _local.checker, _local.deadline = checker, None
         _late(np.zeros(1, np.int64), np.array([0, 0, 1, 0], np.int64))
         _exact_state(a, np.array([1, 0, 0, 0], np.int64))
+        # The exact stage's compiled test of a mesh link against a box or a cylinder.
+        from planning.geometry.registry import KERNEL_CODES
+        from planning.geometry.triangles import MeshTriangles, triangles_meet_object
+
+        tri = MeshTriangles([np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])])
+        eye = np.ascontiguousarray(np.eye(4)[:3])
+        for kind in (KERNEL_CODES["box"], KERNEL_CODES["cylinder"]):
+            triangles_meet_object(tri.tri, tri.lo, tri.hi, tri.first[0], tri.first[1], eye,
+                                  eye, np.int64(kind), np.ones(4))
         _done = True
         return time.perf_counter() - t0
 

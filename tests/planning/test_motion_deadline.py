@@ -181,6 +181,20 @@ with event.install_listener("numba:compile", seen):
     for _ in range(2):   # the second's checks pass the clock's first look (every 1,024)
         plan_motion(checker, [-1, 0.3, -0.3, 0, 0.5, 0], [1, 0.3, -0.3, 0, 0.5, 0],
                     time_limit=5.0, trajectory=False)
+    # The exact stage's mesh test, called as MotionChecker._exact_free calls it.
+    import numpy as np
+    from planning.geometry.triangles import MeshTriangles, triangles_meet_object
+    tri = MeshTriangles([np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]]), None])
+    M = np.zeros((2, 3, 4))
+    M[:, :, :3] = np.eye(3)
+    T_inv, kind, par = M[:1].copy(), np.array([1], dtype=np.int64), np.ones((1, 4))
+    a, c = 0, 0
+    grown = par[c].copy()
+    ready = len(triangles_meet_object.signatures)   # loaded from the cache or compiled
+    triangles_meet_object(tri.tri, tri.lo, tri.hi, tri.first[a], tri.first[a + 1], M[a],
+                          T_inv[c], kind[c], grown)
+    if ready == 0 or len(triangles_meet_object.signatures) != ready:
+        seen.names.append("triangles_meet_object not readied by the warm-up")
 print("COMPILED", len(seen.names), seen.names)
 """
 
@@ -189,7 +203,8 @@ print("COMPILED", len(seen.names), seen.names)
 def test_after_the_warm_up_a_plan_compiles_nothing():
     """In a fresh process, once ``warm_up`` has run, plans whose compiled checks look at the
     clock compile nothing more (numba's compile events): the searches' calls back into
-    Python are readied by the warm-up, not by the first plan that reaches them."""
+    Python are readied by the warm-up, not by the first plan that reaches them; so is the
+    exact stage's compiled mesh test, for the argument types the checker passes it."""
     import subprocess
     import sys
     from pathlib import Path
