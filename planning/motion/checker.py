@@ -185,7 +185,7 @@ class MotionChecker:
     def batch(self, Q) -> tuple[np.ndarray, bool]:
         Q = np.asarray(Q, dtype=float)
         single = Q.ndim == 1
-        Q2 = np.ascontiguousarray(Q[None] if single else Q)
+        Q2 = _kernel_array(Q[None] if single else Q)
         if Q2.ndim != 2 or Q2.shape[1] != self.dof:
             raise FieldError(("q",), f"configurations must have {self.dof} joint values")
         if not np.all(np.isfinite(Q2)):
@@ -234,7 +234,7 @@ class MotionChecker:
         k = self._k
         hits = np.empty((_HIT_CAP, 3), dtype=np.int64)
         M = np.empty((len(self.cm.names), 3, self._robot[6]))
-        n = k.state_hits(*self._robot[:7], np.ascontiguousarray(q), margin,
+        n = k.state_hits(*self._robot[:7], _kernel_array(q), margin,
                          *self._robot[7:13], *self._scene, self._robot[13],
                          *self._robot[14:], hits, M)
         if n >= _HIT_CAP:
@@ -337,8 +337,8 @@ class MotionChecker:
         ``resolution`` (its interior; the end points too with ``ends``): with the compiled
         kernels, stretches of the grid proved free by the distance they sweep (module
         docstring) and the rest state by state."""
-        a = np.ascontiguousarray(a, dtype=float)
-        b = np.ascontiguousarray(b, dtype=float)
+        a = _kernel_array(a)
+        b = _kernel_array(b)
         if ends and not bool(np.all(self.free(np.stack([a, b])))):
             return False
         if self._k is not None:
@@ -548,6 +548,14 @@ class _FastExact:
 
 
 # ---- arrays for the kernels ---------------------------------------------------------------------
+def _kernel_array(x: Any) -> np.ndarray:
+    """``x`` as a contiguous, writable float64 array: numba compiles a kernel anew for a
+    read-only array (a model's frozen limits, a broadcast), tens of seconds the warm-up
+    did not pay, so a read-only one is copied."""
+    x = np.ascontiguousarray(x, dtype=float)
+    return x if x.flags.writeable else x.copy()
+
+
 def _kernels():
     from kinematics import fast
 

@@ -215,3 +215,33 @@ def test_after_the_warm_up_a_plan_compiles_nothing():
     assert done.returncode == 0, done.stderr[-2000:]
     line = next(s for s in done.stdout.splitlines() if s.startswith("COMPILED"))
     assert line.startswith("COMPILED 0 "), line
+
+
+def test_read_only_configurations_compile_nothing_new():
+    """A read-only array (a planner's answered path, a model's frozen limits) is copied
+    before the kernels see it: numba would compile every kernel anew for it (tens of
+    seconds on a cold cache), so the dispatchers gain no signature."""
+    import planning.motion._kernels as kernels
+    import planning.motion._rrt as rr
+    from kinematics.library import builtin_model
+    from planning.collision import CollisionScene, RobotCollisionModel
+    from planning.motion import MotionChecker, warm_up
+
+    warm_up()
+    model = builtin_model("glt_palletizer")
+    checker = MotionChecker(RobotCollisionModel.from_model(model), CollisionScene.from_dicts(
+        [{"type": "box", "id": "b", "size": [100, 100, 100],
+          "pose": [[1, 0, 0, 5000], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}]))
+    a = model.mid_configuration().copy()
+    b = a.copy()
+    b[0] += 0.3
+    Q = np.stack([a, b])
+    Q.setflags(write=False)
+    before = (len(kernels.check_states.signatures), len(rr._segment_free.signatures),
+              len(kernels.state_hits.signatures))
+    checker.free(Q)
+    checker.segment_free(Q[0], Q[1], 0.01)
+    checker._exact_free(Q[0])
+    after = (len(kernels.check_states.signatures), len(rr._segment_free.signatures),
+             len(kernels.state_hits.signatures))
+    assert after == before
