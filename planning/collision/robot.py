@@ -383,6 +383,29 @@ class RobotCollisionModel:
                 "attached": self._describe_attached(),
                 "spheres": int(len(t.flat_r)), "options": self.options}
 
+    def mesh_triangles(self, most: int) -> Any:
+        """``planning.geometry.triangles.MeshTriangles`` of the links whose geometry is all
+        mesh of at most ``most`` triangles (their frames; other links and attachments have
+        none), for the compiled exact stage; built once per model and limit. None for a
+        model of capsules."""
+        if self.kind != "imported":
+            return None
+        cache = self.__dict__.setdefault("_mesh_triangles", {})
+        if most not in cache:
+            from ..geometry.triangles import MeshTriangles
+
+            links = []
+            for k in range(len(self.names)):
+                t = None
+                if k < len(self.link_index):
+                    t, solids = _link_geometry(self.source.links[self.link_index[k]],
+                                               self.source.meshes)
+                    if solids or len(t) > most:
+                        t = None
+                links.append(t)
+            cache[most] = MeshTriangles(links)
+        return cache[most]
+
     def _swept(self, table: Any) -> list[str]:
         """Names of the links a pair table holds turned about a joint (its inner link is
         ``"a"`` of its ``sweep``, the one nearer the base)."""
@@ -492,6 +515,7 @@ class RobotCollisionModel:
     def __getstate__(self):
         state = dict(self.__dict__)
         state.pop("_exact", None)
+        state.pop("_mesh_triangles", None)
         return state
 
     def __setstate__(self, state):

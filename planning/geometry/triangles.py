@@ -30,7 +30,7 @@ from numba import njit
 from .kernels import _JIT
 from .registry import KERNEL_CODES
 
-__all__ = ["MeshTriangles", "triangles_meet_box", "triangles_meet_object"]
+__all__ = ["MeshTriangles", "triangles_meet_object"]
 
 BOX = KERNEL_CODES["box"]
 
@@ -210,9 +210,3 @@ def triangles_meet_object(tri, lo, hi, a, b, Mk, T_inv, kind, par):
         elif _triangle_meets_cylinder(v, par[0], par[1]):
             return True
     return False
-
-
-@njit(**_JIT)
-def triangles_meet_box(tri, lo, hi, a, b, Mk, T_inv, half):
-    """``triangles_meet_object`` for a box of half sides ``half (3,)``."""
-    return triangles_meet_object(tri, lo, hi, a, b, Mk, T_inv, BOX, half)

@@ -286,30 +286,10 @@ class MotionChecker:
         return True
 
     def _mesh_triangles(self) -> Any:
-        """``MeshTriangles`` of the links whose geometry is all meshes of at most
-        ``TRIANGLES_MAX`` triangles (an imported robot's; larger meshes stay with FCL's
-        bounding volume trees), built once; None for a robot of capsules."""
-        got = self.__dict__.get("_tri", False)
-        if got is not False:
-            return got
-        tri = None
-        cm = self.cm
-        if cm.kind == "imported":
-            from planning.collision.robot import _link_geometry
-            from planning.geometry.triangles import MeshTriangles
-
-            links = []
-            for k in range(len(cm.names)):
-                t = None
-                if k < len(cm.link_index):
-                    link = cm.source.links[cm.link_index[k]]
-                    t, solids = _link_geometry(link, cm.source.meshes)
-                    if solids or len(t) > TRIANGLES_MAX:
-                        t = None
-                links.append(t)
-            tri = MeshTriangles(links)
-        self._tri = tri
-        return tri
+        """The collision model's ``mesh_triangles`` (links all mesh of at most
+        ``TRIANGLES_MAX`` triangles; larger meshes stay with FCL's bounding volume trees),
+        None for a robot of capsules."""
+        return self.cm.mesh_triangles(TRIANGLES_MAX)
 
     def steps(self, a: np.ndarray, b: np.ndarray, resolution: float) -> int:
         """Steps of the segment ``a``-``b`` so that no joint moves more than its step: the

@@ -9,9 +9,15 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from planning.geometry.registry import KERNEL_CODES
-from planning.geometry.triangles import MeshTriangles, triangles_meet_box, triangles_meet_object
+from planning.geometry.triangles import MeshTriangles, triangles_meet_object
 
 fcl = pytest.importorskip("fcl")
+BOX = KERNEL_CODES["box"]
+
+
+def triangles_meet_box(tri, lo, hi, a, b, Mk, T_inv, half):
+    """``triangles_meet_object`` for a box of half sides ``half``."""
+    return triangles_meet_object(tri, lo, hi, a, b, Mk, T_inv, BOX, np.r_[half, 0.0])
 
 
 def _bvh(tri: np.ndarray):
