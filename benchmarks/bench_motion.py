@@ -321,6 +321,12 @@ def load_motion():
     except ImportError as e:
         print(f"planning.motion cannot be imported ({e}): ours is skipped")
         return None
+    # As the service's processes do before their first request: every kernel loaded (or,
+    # with an empty numba cache, compiled) now, not inside the first problems' time limits.
+    from planning.warm import warm_up
+
+    report = warm_up()
+    print(f"kernels loaded in {report.total_seconds:.1f} s")
     return MotionChecker, plan_motion
 
 

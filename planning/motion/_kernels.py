@@ -41,7 +41,16 @@ import math
 import numpy as np
 from numba import njit
 
-from planning.geometry.kernels import object_distance, object_within
+from planning.geometry.kernels import (
+    BALLS,
+    BOX,
+    CAPSULE,
+    CYLINDER,
+    SPHERE,
+    cylinder_point,
+    object_distance,
+    object_within,
+)
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
 
@@ -222,6 +231,37 @@ def _table_flagged(q, margin, tab_i, tab_f, tab_values, hits, n_hits, cap):
 
 # ---- one configuration ------------------------------------------------------------------------
 @njit(inline="always", **_JIT)
+def _object_near(p, reach, o, kind, T_inv, par, balls, cells, set_meta):
+    """``object_within`` (``planning.geometry.kernels``: the same tests) written into the
+    loops that call it: a call passing its nine arrays cost about 100 ns, more than the test
+    of a box or a cylinder itself, and the group and leaf balls make many."""
+    k = kind[o]
+    if k == BALLS:
+        return object_within(p, reach, o, kind, T_inv, par, balls, cells, set_meta)
+    p0 = p[0]
+    p1 = p[1]
+    p2 = p[2]
+    x = T_inv[o, 0, 0] * p0 + T_inv[o, 0, 1] * p1 + T_inv[o, 0, 2] * p2 + T_inv[o, 0, 3]
+    y = T_inv[o, 1, 0] * p0 + T_inv[o, 1, 1] * p1 + T_inv[o, 1, 2] * p2 + T_inv[o, 1, 3]
+    z = T_inv[o, 2, 0] * p0 + T_inv[o, 2, 1] * p1 + T_inv[o, 2, 2] * p2 + T_inv[o, 2, 3]
+    if k == BOX:
+        ox = max(abs(x) - par[o, 0], 0.0)
+        oy = max(abs(y) - par[o, 1], 0.0)
+        oz = max(abs(z) - par[o, 2], 0.0)
+        return ox * ox + oy * oy + oz * oz <= reach * reach
+    if k == CYLINDER:
+        return cylinder_point(x, y, z, par, o) <= reach
+    if k == SPHERE:
+        lim = par[o, 0] + reach
+        return x * x + y * y + z * z <= lim * lim
+    if k == CAPSULE:
+        zz = min(max(z, -par[o, 1]), par[o, 1])
+        lim = par[o, 0] + reach
+        return x * x + y * y + (z - zz) * (z - zz) <= lim * lim
+    return object_within(p, reach, o, kind, T_inv, par, balls, cells, set_meta)
+
+
+@njit(inline="always", **_JIT)
 def _within_any(p, reach, kind, T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells,
                 set_meta, among, n_among, out):
     """The objects of ``among[:n_among]`` that may be within ``reach`` of ``p``, into
@@ -239,7 +279,7 @@ def _within_any(p, reach, kind, T_inv, par, aabb, grid, grid_meta, scene_box, ba
         gx = max(aabb[o, 0] - p0, p0 - aabb[o, 3], 0.0)
         gy = max(aabb[o, 1] - p1, p1 - aabb[o, 4], 0.0)
         gz = max(aabb[o, 2] - p2, p2 - aabb[o, 5], 0.0)
-        if gx * gx + gy * gy + gz * gz <= r2 and object_within(p, reach, o, kind, T_inv,
+        if gx * gx + gy * gy + gz * gz <= r2 and _object_near(p, reach, o, kind, T_inv,
                                                                par, balls, cells, set_meta):
             out[n] = o
             n += 1
@@ -309,36 +349,49 @@ def _close(P, Q, lim):
     return dx * dx + dy * dy + dz * dz <= lim * lim
 
 
+@njit(inline="always", **_JIT)
+def _box_gaps(px, py, pz, gaps, n):
+    """Squared gaps of the point ``(px, py, pz)`` to the first ``n`` boxes of ``gaps``
+    (``_scratch``) into its row 6: one loop without branches, which the compiler
+    vectorises (a root ball against a scene's boxes took two thirds of a state's check as
+    a loop that tested each box and then its shape)."""
+    for o in range(n):
+        gx = max(gaps[0, o] - px, px - gaps[3, o], 0.0)
+        gy = max(gaps[1, o] - py, py - gaps[4, o], 0.0)
+        gz = max(gaps[2, o] - pz, pz - gaps[5, o], 0.0)
+        gaps[6, o] = gx * gx + gy * gy + gz * gz
+
+
 @njit(**_JIT)
 def check_state(M, margin, root, root_r, group, group_r, leaf, leaf_r, has_scene, kind,
                 T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells, set_meta, pairs,
-                q, tab_i, tab_f, tab_values, hits, cap, Wr, Wg, Wl, done, all_o, near_r,
+                q, tab_i, tab_f, tab_values, hits, cap, Wr, Wg, Wl, done, gaps, near_r,
                 near_g):
     """Sphere and table check of one state ``M (L, 3, w)`` of configuration ``q``: the
     number of flagged pairs written to ``hits (cap, 3)`` as ``(link, object, 0)`` or
     ``(link, link, 1)``; with ``cap == 0`` it stops at the first and answers 0 (free) or 1
     (flagged). Ball centres are placed once per state, a link's groups and leaves only when
     a coarser ball of it is near something; a leaf is tested only against the objects its
-    group ball is near. ``Wr (L, 3)``, ``Wg``, ``Wl``, ``done (L,)``, ``all_o``, ``near_r``,
-    ``near_g`` ``(n_o,)`` are scratch. The loops that check state after state call
+    group ball is near. ``Wr (L, 3)``, ``Wg``, ``Wl``, ``done (L,)``, ``gaps``, ``near_r``,
+    ``near_g`` are scratch (``_scratch``). The loops that check state after state call
     ``_check``, its body, with the arrays grouped in tuples (inlined into them: numba's
     inliner takes at most 30 arguments, and a call passing these 33 costs as much as a
     third of an empty scene's check)."""
     return _check(M, margin, (root, root_r, group, group_r, leaf, leaf_r),
                   (has_scene, kind, T_inv, par, aabb, grid, grid_meta, scene_box, balls,
                    cells, set_meta), pairs, q, (tab_i, tab_f, tab_values), hits, cap,
-                  (Wr, Wg, Wl, done, all_o, near_r, near_g))
+                  (Wr, Wg, Wl, done, gaps, near_r, near_g))
 
 
 @njit(inline="always", **_JIT)
 def _check(M, margin, sph, scn, pairs, q, tabs, hits, cap, scr):
     """``check_state`` with ``sph = (root, root_r, group, group_r, leaf, leaf_r)``, ``scn``
     the scene's arrays (``MotionChecker._scene``), ``tabs = (tab_i, tab_f, tab_values)``
-    and ``scr = (Wr, Wg, Wl, done, all_o, near_r, near_g)``."""
+    and ``scr = (Wr, Wg, Wl, done, gaps, near_r, near_g)``."""
     root, root_r, group, group_r, leaf, leaf_r = sph
     has_scene, kind, T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells, set_meta = scn
     tab_i, tab_f, tab_values = tabs
-    Wr, Wg, Wl, done, all_o, near_r, near_g = scr
+    Wr, Wg, Wl, done, gaps, near_r, near_g = scr
     n_hits = _table_flagged(q, margin, tab_i, tab_f, tab_values, hits, 0, cap)
     if cap == 0 and n_hits:
         return 1
@@ -355,18 +408,35 @@ def _check(M, margin, sph, scn, pairs, q, tabs, hits, cap, scr):
     if has_scene:
         n_o = kind.shape[0]
         for l in range(L):
+            reach = root_r[l] + margin
             # A link's ball beyond the scene's box (inflated by its reach) is near nothing.
-            if not _near_box(Wr[l], root_r[l] + margin, scene_box):
+            if not _near_box(Wr[l], reach, scene_box):
                 continue
-            nr = _within_any(Wr[l], root_r[l] + margin, kind, T_inv, par, aabb, grid,
-                             grid_meta, scene_box, balls, cells, set_meta, all_o, n_o, near_r)
+            if grid_meta[3] > 0.0 and _grid_bound(Wr[l], grid, grid_meta, scene_box) > reach:
+                continue
+            # The root ball against every object's box in one branch-free pass (vectorised
+            # over the objects), then the shapes of the boxes it comes near.
+            _box_gaps(Wr[l, 0], Wr[l, 1], Wr[l, 2], gaps, n_o)
+            r2 = reach * reach
+            nr = 0
+            for o in range(n_o):
+                if gaps[6, o] <= r2 and _object_near(Wr[l], reach, o, kind, T_inv, par,
+                                                      balls, cells, set_meta):
+                    near_r[nr] = o
+                    nr += 1
             if nr == 0:
                 continue
             _ready(M, l, 1, group, leaf, Wg, Wl, done)
             for g in range(G):
-                ng = _within_any(Wg[l, g], group_r[l, g] + margin, kind, T_inv, par, aabb,
-                                 grid, grid_meta, scene_box, balls, cells, set_meta, near_r,
-                                 nr, near_g)
+                # Only the objects near the root ball can be near a group ball within it.
+                ng = 0
+                reach = group_r[l, g] + margin
+                for i in range(nr):
+                    o = near_r[i]
+                    if _object_near(Wg[l, g], reach, o, kind, T_inv, par, balls, cells,
+                                    set_meta):
+                        near_g[ng] = o
+                        ng += 1
                 if ng == 0:
                     continue
                 _ready(M, l, 2, group, leaf, Wg, Wl, done)
@@ -374,7 +444,7 @@ def _check(M, margin, sph, scn, pairs, q, tabs, hits, cap, scr):
                     reach = leaf_r[l, g, j] + margin
                     for i in range(ng):
                         o = near_g[i]
-                        if object_within(Wl[l, g, j], reach, o, kind, T_inv, par, balls,
+                        if _object_near(Wl[l, g, j], reach, o, kind, T_inv, par, balls,
                                           cells, set_meta):
                             if cap == 0:
                                 return 1
@@ -413,10 +483,17 @@ def _check(M, margin, sph, scn, pairs, q, tabs, hits, cap, scr):
 
 
 @njit(**_JIT)
-def _scratch(L, G, m, n_o):
-    all_o = np.arange(max(n_o, 1))
+def _scratch(L, G, m, aabb):
+    """Scratch of ``_check``: ball centres ``Wr``, ``Wg``, ``Wl``, ``done``, the objects'
+    boxes ``gaps (7, n_o)`` (rows 0-5 the bounds of ``aabb`` transposed, row 6 the squared
+    gaps of one ball to them) and the near lists ``near_r``, ``near_g``."""
+    n_o = aabb.shape[0]
+    gaps = np.zeros((7, max(n_o, 1)))
+    for o in range(n_o):
+        for c in range(6):
+            gaps[c, o] = aabb[o, c]
     return (np.empty((L, 3)), np.empty((L, G, 3)), np.empty((L, G, m, 3)),
-            np.zeros(L, dtype=np.int8), all_o, np.empty(max(n_o, 1), dtype=np.int64),
+            np.zeros(L, dtype=np.int8), gaps, np.empty(max(n_o, 1), dtype=np.int64),
             np.empty(max(n_o, 1), dtype=np.int64))
 
 
@@ -431,15 +508,14 @@ def check_states(C, prismatic, offset, body, X, ends, w, Q, margin, root, root_r
     F = np.empty((E, 3, 4))
     M = np.empty((L, 3, w))
     hits = np.empty((1, 3), dtype=np.int64)
-    Wr, Wg, Wl, done, all_o, near_r, near_g = _scratch(L, group.shape[1], leaf.shape[2],
-                                                       kind.shape[0])
+    Wr, Wg, Wl, done, gaps, near_r, near_g = _scratch(L, group.shape[1], leaf.shape[2], aabb)
     for b in range(Q.shape[0]):
         frames(C, prismatic, offset, body, X, Q[b], T, F)
         link_state(F, ends, w, M)
         out[b] = _check(M, margin, (root, root_r, group, group_r, leaf, leaf_r),
                         (has_scene, kind, T_inv, par, aabb, grid, grid_meta, scene_box,
                          balls, cells, set_meta), pairs, Q[b], (tab_i, tab_f, tab_values),
-                        hits, 0, (Wr, Wg, Wl, done, all_o, near_r, near_g))
+                        hits, 0, (Wr, Wg, Wl, done, gaps, near_r, near_g))
 
 
 @njit(**_JIT)
@@ -452,14 +528,13 @@ def state_hits(C, prismatic, offset, body, X, ends, w, q, margin, root, root_r, 
     L = root.shape[0]
     T = np.empty((3, 4))
     F = np.empty((E, 3, 4))
-    Wr, Wg, Wl, done, all_o, near_r, near_g = _scratch(L, group.shape[1], leaf.shape[2],
-                                                       kind.shape[0])
+    Wr, Wg, Wl, done, gaps, near_r, near_g = _scratch(L, group.shape[1], leaf.shape[2], aabb)
     frames(C, prismatic, offset, body, X, q, T, F)
     link_state(F, ends, w, M)
     return check_state(M, margin, root, root_r, group, group_r, leaf, leaf_r, has_scene, kind,
                        T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells, set_meta,
                        pairs, q, tab_i, tab_f, tab_values, hits, hits.shape[0], Wr, Wg, Wl,
-                       done, all_o, near_r, near_g)
+                       done, gaps, near_r, near_g)
 
 
 @njit(**_JIT)
@@ -477,8 +552,7 @@ def segment_first(C, prismatic, offset, body, X, ends, w, a, b, n, order, start,
     F = np.empty((E, 3, 4))
     M = np.empty((L, 3, w))
     hits = np.empty((1, 3), dtype=np.int64)
-    Wr, Wg, Wl, done, all_o, near_r, near_g = _scratch(L, group.shape[1], leaf.shape[2],
-                                                       kind.shape[0])
+    Wr, Wg, Wl, done, gaps, near_r, near_g = _scratch(L, group.shape[1], leaf.shape[2], aabb)
     for i in range(start, order.shape[0]):
         s = order[i] / n
         for j in range(dof):
@@ -488,7 +562,7 @@ def segment_first(C, prismatic, offset, body, X, ends, w, a, b, n, order, start,
         if _check(M, margin, (root, root_r, group, group_r, leaf, leaf_r),
                   (has_scene, kind, T_inv, par, aabb, grid, grid_meta, scene_box, balls,
                    cells, set_meta), pairs, q, (tab_i, tab_f, tab_values), hits, 0,
-                  (Wr, Wg, Wl, done, all_o, near_r, near_g)):
+                  (Wr, Wg, Wl, done, gaps, near_r, near_g)):
             return i
     return order.shape[0]
 

@@ -279,7 +279,7 @@ def _segment_free(R, S, a, b, wt, res, margin, q, work):
     its middle state not clear by it) the middle state itself must be free and the two
     halves are taken in turn; a stretch of one grid step is free when its ends are (grid
     states at most ``res`` apart, as without sweeps)."""
-    T, F, M, hits, Wr, Wg, Wl, done, all_o, near_r, near_g, sw, count, mode = work
+    T, F, M, hits, Wr, Wg, Wl, done, gaps, near_r, near_g, sw, count, mode = work
     if mode[3] != 0:
         return False
     n = _steps(a, b, sw, res)
@@ -287,7 +287,7 @@ def _segment_free(R, S, a, b, wt, res, margin, q, work):
         return True
     if mode[2] != 0 and n >= SWEEP_CLOCK_STEPS and _late(np.zeros(1, dtype=np.int64), mode):
         return False    # the clock looked at now (a count of 0 always looks)
-    scr = (Wr, Wg, Wl, done, all_o, near_r, near_g)
+    scr = (Wr, Wg, Wl, done, gaps, near_r, near_g)
     cum = np.empty(a.shape[0] + 1)
     qx = np.empty(a.shape[0] + 1)
     s_scene, s_self = sweeps(R, a, b, cum)
@@ -356,10 +356,9 @@ def make_work(R, S, sw):
     """Scratch arrays for ``_segment_free``, with the joints' step weights ``sw``."""
     E = R[3].shape[0]
     L = R[7].shape[0]
-    Wr, Wg, Wl, done, all_o, near_r, near_g = _scratch(L, R[9].shape[1], R[11].shape[2],
-                                                       S[1].shape[0])
+    Wr, Wg, Wl, done, gaps, near_r, near_g = _scratch(L, R[9].shape[1], R[11].shape[2], S[4])
     return (np.empty((3, 4)), np.empty((E, 3, 4)), np.empty((L, 3, R[6])),
-            np.empty((1, 3), dtype=np.int64), Wr, Wg, Wl, done, all_o, near_r, near_g,
+            np.empty((1, 3), dtype=np.int64), Wr, Wg, Wl, done, gaps, near_r, near_g,
             sw.copy(), np.zeros(3, dtype=np.int64), np.zeros(4, dtype=np.int64))
 
 
@@ -634,14 +633,14 @@ def shortcut_run(R, S, path, n, wt, fine, margin, attempts, patience, rng, work,
 def _state_free(R, S, q, margin, work):
     """Whether configuration ``q`` is free (the spheres, then the exact stage as ``mode``
     says), counted like a segment's states."""
-    T, F, M, hits, Wr, Wg, Wl, done, all_o, near_r, near_g, sw, count, mode = work
+    T, F, M, hits, Wr, Wg, Wl, done, gaps, near_r, near_g, sw, count, mode = work
     if mode[3] != 0:
         return False
     count[0] += 1
     if _late(count, mode):
         return False
     return _spheres_clear(R, S, q, margin, T, F, M, hits,
-                          (Wr, Wg, Wl, done, all_o, near_r, near_g)) or _exact_state(q, mode)
+                          (Wr, Wg, Wl, done, gaps, near_r, near_g)) or _exact_state(q, mode)
 
 
 @njit(**_JIT)
