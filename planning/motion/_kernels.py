@@ -182,43 +182,51 @@ def _near_box(p, reach, box):
 
 
 @njit(**_JIT)
+def _table_bound(q, t, tab_i, tab_f, tab_values):
+    """Table ``t``'s lower bound (mm) of its pair's distance at ``q``: the largest of its
+    grid values at the cell's corners, each less the distance ``q`` is from that corner
+    times the table's rate (``planning.collision.tables``)."""
+    k = tab_i[t, 5]
+    first = tab_i[t, 4]
+    best = -np.inf
+    if k == 1:
+        j = tab_i[t, 0]
+        last = tab_i[t, 2] - 1
+        x = q[j]
+        base = min(max(int((x - tab_f[t, 0]) / tab_f[t, 2]), 0), last)
+        for c0 in range(2):
+            i0 = min(base + c0, last)
+            v = tab_values[first + i0] - abs(x - (tab_f[t, 0] + i0 * tab_f[t, 2])) \
+                * tab_f[t, 4]
+            if v > best:
+                best = v
+    else:
+        j0 = tab_i[t, 0]
+        j1 = tab_i[t, 1]
+        last0 = tab_i[t, 2] - 1
+        last1 = tab_i[t, 3] - 1
+        x0 = q[j0]
+        x1 = q[j1]
+        b0 = min(max(int((x0 - tab_f[t, 0]) / tab_f[t, 2]), 0), last0)
+        b1 = min(max(int((x1 - tab_f[t, 1]) / tab_f[t, 3]), 0), last1)
+        for c0 in range(2):
+            i0 = min(b0 + c0, last0)
+            g0 = abs(x0 - (tab_f[t, 0] + i0 * tab_f[t, 2])) * tab_f[t, 4]
+            for c1 in range(2):
+                i1 = min(b1 + c1, last1)
+                g1 = abs(x1 - (tab_f[t, 1] + i1 * tab_f[t, 3])) * tab_f[t, 5]
+                v = tab_values[first + i0 * tab_i[t, 3] + i1] - g0 - g1
+                if v > best:
+                    best = v
+    return best
+
+
+@njit(**_JIT)
 def _table_flagged(q, margin, tab_i, tab_f, tab_values, hits, n_hits, cap):
     """Flag the pairs whose table lower bound at ``q`` is at most ``margin`` (as
     ``_scene_link``: the new hit count; stops at the first when ``cap == 0``)."""
     for t in range(tab_i.shape[0]):
-        k = tab_i[t, 5]
-        first = tab_i[t, 4]
-        best = -np.inf
-        if k == 1:
-            j = tab_i[t, 0]
-            last = tab_i[t, 2] - 1
-            x = q[j]
-            base = min(max(int((x - tab_f[t, 0]) / tab_f[t, 2]), 0), last)
-            for c0 in range(2):
-                i0 = min(base + c0, last)
-                v = tab_values[first + i0] - abs(x - (tab_f[t, 0] + i0 * tab_f[t, 2])) \
-                    * tab_f[t, 4]
-                if v > best:
-                    best = v
-        else:
-            j0 = tab_i[t, 0]
-            j1 = tab_i[t, 1]
-            last0 = tab_i[t, 2] - 1
-            last1 = tab_i[t, 3] - 1
-            x0 = q[j0]
-            x1 = q[j1]
-            b0 = min(max(int((x0 - tab_f[t, 0]) / tab_f[t, 2]), 0), last0)
-            b1 = min(max(int((x1 - tab_f[t, 1]) / tab_f[t, 3]), 0), last1)
-            for c0 in range(2):
-                i0 = min(b0 + c0, last0)
-                g0 = abs(x0 - (tab_f[t, 0] + i0 * tab_f[t, 2])) * tab_f[t, 4]
-                for c1 in range(2):
-                    i1 = min(b1 + c1, last1)
-                    g1 = abs(x1 - (tab_f[t, 1] + i1 * tab_f[t, 3])) * tab_f[t, 5]
-                    v = tab_values[first + i0 * tab_i[t, 3] + i1] - g0 - g1
-                    if v > best:
-                        best = v
-        if best <= margin:
+        if _table_bound(q, t, tab_i, tab_f, tab_values) <= margin:
             if cap == 0:
                 return n_hits + 1
             if n_hits < cap:
@@ -572,33 +580,32 @@ def segment_first(C, prismatic, offset, body, X, ends, w, a, b, n, order, start,
 def state_bounds(C, prismatic, offset, body, X, ends, w, q, reach, root, root_r, group,
                  group_r, leaf, leaf_r, has_scene, kind, T_inv, par, aabb, grid, grid_meta,
                  scene_box, balls, cells, set_meta, pairs, tab_i, tab_f, tab_values,
-                 out_scene, out_self, out_tab, M):
+                 out_scene, out_self, out_tab, M, T, F, Wr, Wg, Wl, done, gaps):
     """Sphere lower bounds of every pair's distance at configuration ``q`` (capped at
     ``reach`` mm): link-object ``out_scene (L, n_o)``, sphere-checked self pairs
-    ``out_self (P,)``, tabled pairs ``out_tab (T,)``; the link state into ``M``."""
-    E = body.shape[0]
-    T = np.empty((3, 4))
-    F = np.empty((E, 3, 4))
+    ``out_self (P,)``, tabled pairs ``out_tab (T,)`` (the table's own bound); the link
+    state into ``M``. ``T``, ``F``, ``Wr``, ``Wg``, ``Wl``, ``done``, ``gaps`` are scratch
+    (``states_bounds``)."""
     frames(C, prismatic, offset, body, X, q, T, F)
     link_state(F, ends, w, M)
     L = M.shape[0]
     G = group.shape[1]
     m = leaf.shape[2]
     n_o = kind.shape[0]
-    Wr = np.empty((L, 3))
-    Wg = np.empty((L, G, 3))
-    Wl = np.empty((L, G, m, 3))
-    done = np.zeros(L, dtype=np.int8)
     for l in range(L):
+        done[l] = 0
         _place(M, l, root[l], Wr[l])
     # Balls contain their children: a coarser ball's distance bounds its leaves', so whole
     # links and groups are skipped once they cannot beat the pair's best so far (a link's
     # groups and leaves are placed only then), and an object whose bounding box is beyond
     # the cap is not measured.
     for l in range(L):
+        if has_scene:
+            _box_gaps(Wr[l, 0], Wr[l, 1], Wr[l, 2], gaps, n_o)
+        lim = reach + root_r[l]
         for o in range(n_o):
             best = reach
-            if has_scene and _near_box(Wr[l], reach + root_r[l], aabb[o]) \
+            if has_scene and gaps[6, o] <= lim * lim \
                     and object_distance(Wr[l], reach + root_r[l], o, kind, T_inv, par,
                                         balls, cells, set_meta) - root_r[l] < best:
                 _ready(M, l, 2, group, leaf, Wg, Wl, done)
@@ -634,24 +641,7 @@ def state_bounds(C, prismatic, offset, body, X, ends, w, q, reach, root, root_r,
                                 best = d
         out_self[k] = best
     for t in range(tab_i.shape[0]):
-        one = tab_i[t:t + 1]
-        hits = np.empty((1, 3), dtype=np.int64)
-        # The table's value: bisect the margin at which it flags (1e-3 mm).
-        lo = -1e4
-        hi = reach
-        if _table_flagged(q, lo, one, tab_f[t:t + 1], tab_values, hits, 0, 0) > 0:
-            out_tab[t] = lo
-            continue
-        if _table_flagged(q, hi, one, tab_f[t:t + 1], tab_values, hits, 0, 0) == 0:
-            out_tab[t] = hi
-            continue
-        while hi - lo > 1e-3:
-            mid = 0.5 * (lo + hi)
-            if _table_flagged(q, mid, one, tab_f[t:t + 1], tab_values, hits, 0, 0) > 0:
-                hi = mid
-            else:
-                lo = mid
-        out_tab[t] = lo
+        out_tab[t] = min(_table_bound(q, t, tab_i, tab_f, tab_values), reach)
 
 
 @njit(**_JIT)
@@ -661,11 +651,18 @@ def states_bounds(C, prismatic, offset, body, X, ends, w, Q, reach, root, root_r
                   out_scene, out_self, out_tab, M):
     """``state_bounds`` of each configuration of ``Q (S, n)``: ``out_scene (S, L, n_o)``,
     ``out_self (S, P)``, ``out_tab (S, T)`` and the link states ``M (S, L, 3, w)``."""
+    L = root.shape[0]
+    G = group.shape[1]
+    m = leaf.shape[2]
+    T = np.empty((3, 4))
+    F = np.empty((body.shape[0], 3, 4))
+    Wr, Wg, Wl, done, gaps, _, _ = _scratch(L, G, m, aabb)
     for s in range(Q.shape[0]):
         state_bounds(C, prismatic, offset, body, X, ends, w, Q[s], reach, root, root_r,
                      group, group_r, leaf, leaf_r, has_scene, kind, T_inv, par, aabb, grid,
                      grid_meta, scene_box, balls, cells, set_meta, pairs, tab_i, tab_f,
-                     tab_values, out_scene[s], out_self[s], out_tab[s], M[s])
+                     tab_values, out_scene[s], out_self[s], out_tab[s], M[s], T, F, Wr, Wg,
+                     Wl, done, gaps)
 
 
 # ---- search helpers ---------------------------------------------------------------------------
