@@ -426,13 +426,15 @@ def _branch_length(P, t, i):
 
 @njit(**_JIT)
 def rrt_connect_run(R, S, X, P, A, K, N, side, lo, hi, wt, step, coarse, fine, margin,
-                    iterations, rng, work, out):
+                    iterations, rng, work, out, validate):
     """Up to ``iterations`` of RRT-Connect on trees ``0`` (from the start) and ``1`` (from
     the goals) held in ``X (2, cap, dof)``, parents ``P``, live flags ``A``, fine-checked
     flags ``K`` and sizes ``N (2,)``; ``side[0]`` is the tree extended next. Edges enter at
-    the ``coarse`` step and the path's edges are checked at ``fine`` when the trees meet.
-    Answers ``(RUN_FOUND, K)`` with the path's ``K`` waypoints in ``out``, ``(RUN_BUDGET,
-    0)`` or ``(RUN_FULL, 0)`` when a tree is full."""
+    the ``coarse`` step and, with ``validate``, the path's edges are checked at ``fine``
+    when the trees meet (without it the path is answered checked at ``coarse`` only, for a
+    caller that certifies what it keeps of it). Answers ``(RUN_FOUND, K)`` with the path's
+    ``K`` waypoints in ``out``, ``(RUN_BUDGET, 0)`` or ``(RUN_FULL, 0)`` when a tree is
+    full."""
     dof = lo.shape[0]
     cap = X.shape[1]
     x = np.empty(dof)
@@ -464,14 +466,15 @@ def rrt_connect_run(R, S, X, P, A, K, N, side, lo, hi, wt, step, coarse, fine, m
                 break
         if not met:
             continue
-        ok, bad = _validate(R, S, X, P, A, K, a, k, wt, fine, margin, q, work)
-        if not ok:
-            _kill(P, A, N, a, bad)
-            continue
-        ok, bad = _validate(R, S, X, P, A, K, b, j, wt, fine, margin, q, work)
-        if not ok:
-            _kill(P, A, N, b, bad)
-            continue
+        if validate:
+            ok, bad = _validate(R, S, X, P, A, K, a, k, wt, fine, margin, q, work)
+            if not ok:
+                _kill(P, A, N, a, bad)
+                continue
+            ok, bad = _validate(R, S, X, P, A, K, b, j, wt, fine, margin, q, work)
+            if not ok:
+                _kill(P, A, N, b, bad)
+                continue
         # Start tree's branch reversed, then the goal tree's from after the meeting node.
         s_leaf = k if a == 0 else j
         g_leaf = j if a == 0 else k

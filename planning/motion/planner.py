@@ -20,8 +20,12 @@ slack), again settling every flagged state exactly for the rest of the time. Wit
 compiled kernels RRT-Connect runs in Python (``search.rrt_connect``). The path is then
 shortened with the checker that found it (compiled, every segment of the answer checked at
 the resolution as it is shortened; a path shortened in Python is checked once more before
-it is answered). ``auto`` with a time limit past ``AUTO_REFINE_AFTER`` s also hands the shortened
-path to RRT* as the bound to beat until ``AUTO_REFINE_SHARE`` of the time, then shortens the
+it is answered). The compiled search does not check its path at the resolution when it is
+to be shortened: most of it is shortcut away, and what the answer keeps of it is checked at
+the resolution by the shortening (bent about a state the finer check finds in collision);
+if that fails, the search runs again checking each path it finds at the resolution.
+``auto`` with a time limit past ``AUTO_REFINE_AFTER`` s also hands the shortened path to
+RRT* as the bound to beat until ``AUTO_REFINE_SHARE`` of the time, then shortens the
 best path again. ``rrt_star`` searches with RRT* for the whole time limit.
 
 Time: the search ends by ``time_limit``; simplification has half of it, within what the
@@ -384,8 +388,11 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
                             resolution)
     elif checker._k is not None:
         used = "rrt_connect"
+        # With simplification the search's path is not checked at ``resolution`` when the
+        # trees meet: most of it is shortcut away, and the simplification certifies what
+        # it keeps (``shortcut_compiled(checked=...)``).
         path, st, mode = _compiled_search(checker, q_start, goals, rng, stop, resolution,
-                                          time_limit, exact)
+                                          time_limit, exact, validate=not simplify)
     else:
         used = "rrt_connect"
         path, st = rrt_connect(checker, q_start, goals, rng,
@@ -398,6 +405,7 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
                       f"no path found within the time limit of {time_limit:g} s "
                       f"({st.get('nodes', 0)} tree nodes)",
                       stats={**stats, "checks": checker.checks - checks0})
+    lazy = stats.pop("lazy_segments", None), stats.pop("lazy_step", None)
     stats["raw_waypoints"] = len(path)
     stats["raw_length"] = path_length(path)
     raw = path
@@ -408,14 +416,41 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
                                   min(0.5 * time_limit, t0 + time_limit - t_simplify))
     checker.deadline = s_deadline
     certified = False       # every segment checked at ``resolution`` by the simplification
-    if simplify and len(path) > 2:
+    checked = None          # the step each segment was checked at, if coarser for some
+    if lazy[0] is not None:
+        checked = np.full(len(path) - 1, float(resolution))
+        checked[lazy[0][0]:lazy[0][1]] = lazy[1]
+    if simplify and (len(path) > 2 or checked is not None):
 
         def s_stop() -> bool:
             return time.perf_counter() >= s_deadline
 
         if mode is not None:
             # Compiled, with the checker the path was found with.
-            path = shortcut_compiled(checker, path, rng, resolution, exact=mode == "exact")
+            shorter = shortcut_compiled(checker, path, rng, resolution, exact=mode == "exact",
+                                        checked=checked)
+            if shorter is None:
+                # The search's lazily checked path could not be made free at
+                # ``resolution`` (bent about its states at fault): search again, checking
+                # each path at ``resolution`` when the trees meet, for the time left.
+                stats["lazy_path_rejected"] = True
+                checker.deadline = t0 + time_limit
+                path, st2, mode = _compiled_search(checker, q_start, goals, rng, stop,
+                                                   resolution, time_limit, exact)
+                checker.exact, checker.exact_zone = exact, None
+                if path is None:
+                    return result(MotionStatus.TIMEOUT,
+                                  f"no path found within the time limit of {time_limit:g} s "
+                                  f"({st2.get('nodes', 0)} tree nodes)",
+                                  stats={**stats, "checks": checker.checks - checks0})
+                raw = path
+                stats["raw_waypoints"] = len(path)
+                stats["raw_length"] = path_length(path)
+                s_deadline = max(s_deadline, time.perf_counter() + SIMPLIFY_MIN_S)
+                checker.deadline = s_deadline
+                shorter = shortcut_compiled(checker, path, rng, resolution,
+                                            exact=mode == "exact")
+            path = shorter
             certified = True
         else:
             checker.exact = False
@@ -467,7 +502,8 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
 
 def _compiled_search(checker: MotionChecker, q_start: np.ndarray, goals: np.ndarray,
                      rng: np.random.Generator, stop, resolution: float, time_limit: float,
-                     exact: bool) -> tuple[np.ndarray | None, dict, str | None]:
+                     exact: bool, validate: bool = True
+                     ) -> tuple[np.ndarray | None, dict, str | None]:
     """The compiled RRT-Connect, first on the sphere model alone (a flagged state counts as
     a collision), which is fast where the way is wide, for up to ``SPHERE_SHARE`` of the
     time limit and at most ``SPHERE_MAX_S`` s: a start or goal the spheres flag (a gripper
@@ -475,7 +511,9 @@ def _compiled_search(checker: MotionChecker, q_start: np.ndarray, goals: np.ndar
     clear, and the trees grow from those paths' ends. Then, with ``exact``, the same trees
     grow on in chunks of iterations that either settle flagged states exactly (through a
     passage narrower than the spheres' slack) or stay on the spheres alone (fast across open
-    space), the time shared evenly between the two. Answers the path, statistics and the
+    space), the time shared evenly between the two. Without ``validate`` the path found is
+    answered with its own edges checked at the lazy step only (``rrt_connect_compiled``;
+    statistics ``lazy_segments`` and ``lazy_step``). Answers the path, statistics and the
     mode that found it (``"spheres"``, or ``"exact"`` once the exact stage has joined)."""
     stats: dict[str, Any] = {}
     ends = _sphere_ends(checker, q_start, goals, rng, stop, resolution, exact)
@@ -501,7 +539,8 @@ def _compiled_search(checker: MotionChecker, q_start: np.ndarray, goals: np.ndar
 
     head, tails = ends if ends is not None else (None, ())
     path, st = rrt_connect_compiled(checker, q_start, goals, rng, stop, resolution,
-                                    exact=use_exact, head=head, tails=tails)
+                                    exact=use_exact, head=head, tails=tails,
+                                    validate=validate)
     stats.update(st)
     stats["escaped"] = head is not None and len(head) > 1 or any(len(t) > 1 for t in tails)
     return path, stats, None if path is None else \

@@ -191,7 +191,8 @@ def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.nd
                          lazy: float | None = None, chunk: int = 256,
                          restart: int = RESTART_ITERATIONS,
                          head: np.ndarray | None = None,
-                         tails: Sequence[np.ndarray] = ()) -> tuple[np.ndarray | None, dict]:
+                         tails: Sequence[np.ndarray] = (),
+                         validate: bool = True) -> tuple[np.ndarray | None, dict]:
     """``rrt_connect`` compiled: on the sphere model alone (a flagged state is a collision),
     or with ``exact`` confirming flagged states on the exact shapes (``checker.exact`` must
     be on). ``exact`` may be a callable asked before each ``chunk`` of iterations: a tree
@@ -201,8 +202,11 @@ def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.nd
     the trees then grow from the head's last state and the tails' first states, and the
     answer is put together with them. The search starts afresh after ``restart``
     iterations without a path, each time with ``RESTART_GROWTH`` times the budget (0:
-    never). Statistics: ``iterations``, ``nodes``, ``restarts``, ``exact_chunks``. None
-    when ``stop()`` says so first or there are no compiled kernels."""
+    never). Without ``validate`` the path's edges are answered checked at the lazy step
+    only (the edges ``head`` and ``tails`` bring at ``resolution``), for
+    ``shortcut_compiled(checked=...)``, which certifies what it keeps. Statistics:
+    ``iterations``, ``nodes``, ``restarts``, ``exact_chunks``. None when ``stop()`` says so
+    first or there are no compiled kernels."""
     got = _compiled(checker)
     if got is None:
         return None, {"compiled": False}
@@ -250,12 +254,17 @@ def rrt_connect_compiled(checker: MotionChecker, start: np.ndarray, goals: np.nd
         c0 = int(count[0])
         code, m = rr.rrt_connect_run(checker._robot, checker._scene, X, P, A, K, N, side,
                                      lo, hi, w, float(step), float(coarse), float(resolution),
-                                     checker.margin, chunk, state, work, out)
+                                     checker.margin, chunk, state, work, out, validate)
         checker.checks += int(count[0]) - c0
         stats["iterations"] += chunk
         if code == rr.RUN_FOUND:
             stats["nodes"] = int(N.sum())
             path = out[:m].copy()
+            if not validate:
+                # The segments checked at the lazy step only: the search's own.
+                first = 0 if head is None else len(head) - 1
+                stats["lazy_segments"] = [first, first + m - 1]
+                stats["lazy_step"] = coarse
             if head is not None:
                 path = np.concatenate([head[:-1], path])
             if tails:
@@ -292,16 +301,22 @@ REPAIR_MOST = 8
 
 def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.Generator,
                       resolution: float, attempts: int = 100, patience: int = 30,
-                      exact: bool = False) -> np.ndarray:
+                      exact: bool = False, checked: np.ndarray | None = None
+                      ) -> np.ndarray | None:
     """``shortcut`` compiled: on the sphere model alone, or with ``exact`` confirming
     flagged states on the exact shapes; the path as it is without compiled kernels. Every
     segment of ``path`` must have been checked free at ``resolution`` (at its
-    ``MotionChecker.steps``): a shortcut keeps pieces of them without checking them again
-    (``planning.motion._rrt.shortcut_run``), and every segment of the answer is checked at
-    ``resolution`` here (by the shortcuts at it, or by ``refine_path`` after the lazy
-    pass), so the answer needs no check after it."""
+    ``MotionChecker.steps``), or at the coarser step ``checked[i]`` (weighted rad) for
+    segment ``i`` when ``checked`` is given: a shortcut keeps pieces of them without
+    checking them again (``planning.motion._rrt.shortcut_run``), and every segment of the
+    answer is checked at ``resolution`` here (by the shortcuts at it, or by ``refine_path``
+    after the lazy pass), so the answer needs no check after it. With ``checked``, a path
+    whose coarsely checked segments cannot be made free at ``resolution`` (bent about the
+    states at fault) answers None: the caller searches again, checking at ``resolution``."""
     got = _compiled(checker)
-    if got is None or len(path) <= 2:
+    if got is None:
+        return path if checked is None else None
+    if len(path) <= 2 and checked is None:
         return path
     rr, work = got
     n = len(path)
@@ -318,19 +333,29 @@ def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.G
     R, S, margin = checker._robot, checker._scene, checker.margin
     seed = state.copy()
     fine = float(resolution)
-    for step in (SHORTCUT_LAZY * fine, fine) if SHORTCUT_LAZY > 1 else (fine,):
+    # The steps at which the segments of ``path`` were checked.
+    ns0 = np.zeros(len(buf), dtype=np.int64)
+    rr.fill_steps(buf, n, fine, work, ns0)
+    if checked is not None:
+        # As ``_rrt._steps`` counts them, at each segment's own step.
+        coarse = np.asarray(checked, dtype=float)
+        span = np.max(np.abs(np.diff(path, axis=0)) * work[11], axis=1)
+        lazy = np.flatnonzero(coarse > fine)
+        ns0[lazy] = np.maximum(1, np.ceil(span[lazy] / coarse[lazy] - 1e-12)).astype(np.int64)
+    passes = (SHORTCUT_LAZY * fine, fine) if SHORTCUT_LAZY > 1 else (fine,)
+    for step in passes:
         # First with new segments checked at a coarser step, then each segment not yet
         # checked at ``resolution`` checked at it (bent where it fails); if that fails,
-        # again at ``resolution``.
+        # again at ``resolution`` (a coarsely checked path made free at it first).
         buf[:len(path)] = path
         n = len(path)
         state[:] = seed
-        ns = np.zeros(len(buf), dtype=np.int64)
-        rr.fill_steps(buf, n, fine, work, ns)
-        n = rr.reduce_path(R, S, buf, n, w, step, margin, work, ns)
-        n = rr.shortcut_run(R, S, buf, n, w, step, margin, int(attempts), int(patience),
-                            state, work, ns, SHORTCUT_LEAST_GAIN)
-        n = rr.reduce_path(R, S, buf, n, w, step, margin, work, ns)
+        ns = ns0.copy()
+        if n > 2:
+            n = rr.reduce_path(R, S, buf, n, w, step, margin, work, ns)
+            n = rr.shortcut_run(R, S, buf, n, w, step, margin, int(attempts), int(patience),
+                                state, work, ns, SHORTCUT_LEAST_GAIN)
+            n = rr.reduce_path(R, S, buf, n, w, step, margin, work, ns)
         if step == fine:
             break
         m = rr.refine_path(R, S, buf, n, w, fine, margin, work, ns, lo, hi, state,
@@ -338,9 +363,18 @@ def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.G
         if m > 0:
             n = m
             break
+        if checked is not None:
+            buf[:len(path)] = path
+            ns = ns0.copy()
+            m = rr.refine_path(R, S, buf, len(path), w, fine, margin, work, ns, lo, hi,
+                               state, REPAIR_TRIES, REPAIR_MOST)
+            if m <= 0:
+                checker.checks += int(count[0]) - c0
+                return None
+            path = buf[:m].copy()
+            rr.fill_steps(path, m, fine, work, ns0)
     checker.checks += int(count[0]) - c0
     return buf[:n].copy()
-
 
 
 #: How far (weighted rad) ``escape`` looks for a configuration the spheres clear, with how

@@ -207,3 +207,107 @@ def test_a_lazy_shortcut_through_a_thin_wall_is_refused(gantry_cm):
                         for a, b in zip(out[:-1], out[1:])
                         for n in [max(1, int(np.ceil(np.abs(b - a).max() / 50.0)))]])
     assert not collides(gantry_cm, Q, scene, exact=True).any()
+
+
+# ---- a search's path checked at its lazy step only ------------------------------------------
+def _dense_free(cm, path: np.ndarray, scene: CollisionScene, step_mm: float) -> bool:
+    """Every state of ``path`` at most ``step_mm`` apart free by the collision package."""
+    Q = np.concatenate([a + (b - a) * (np.arange(n + 1) / n)[:, None]
+                        for a, b in zip(path[:-1], path[1:])
+                        for n in [max(1, int(np.ceil(np.abs(b - a).max() / step_mm)))]])
+    return not collides(cm, Q, scene, exact=True).any()
+
+
+def _slit_scene() -> CollisionScene:
+    h = 2000.0
+    return CollisionScene.from_dicts([
+        box("upper", (20.0, h, 400), (450.0, 150.0 + h / 2, 0)),
+        box("lower", (20.0, h, 400), (450.0, -150.0 - h / 2, 0))])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_coarsely_checked_path_is_certified_or_refused(gantry_cm, seed):
+    """A segment checked at 300 mm steps only (``checked``), its coarse states clear of a
+    20 mm wall they straddle: the simplification never answers it as it is. It answers a
+    path whose every state 50 mm apart is free by the collision package (bent through the
+    slit), or None (the caller searches again)."""
+    from planning.motion.search import shortcut_compiled
+
+    scene = _slit_scene()
+    checker = MotionChecker(gantry_cm, scene)
+    path = np.array([[0.0, 600.0], [880.0, 600.0]])
+    coarse = 3.0                                          # weighted: 300 mm
+    assert checker.segment_free(path[0], path[1], coarse)
+    assert not checker.segment_free(path[0], path[1], 0.5)
+    out = shortcut_compiled(checker, path, np.random.default_rng(seed), 0.5,
+                            checked=np.array([coarse]))
+    if out is not None:
+        assert np.array_equal(out[0], path[0]) and np.array_equal(out[-1], path[-1])
+        assert len(out) > 2
+        assert _dense_free(gantry_cm, out, scene, 50.0)
+
+
+def test_coarse_segments_of_a_path_are_checked_where_the_answer_keeps_them(gantry_cm):
+    """A path around the wall's end whose middle segment was checked coarsely and runs
+    through the wall: the answer does not keep that segment unchecked (its states 50 mm
+    apart are free), while segments checked at the resolution are trusted as they are."""
+    from planning.motion.search import shortcut_compiled
+
+    scene = _slit_scene()
+    checker = MotionChecker(gantry_cm, scene)
+    path = np.array([[0.0, 600.0], [300.0, 600.0], [700.0, 600.0], [880.0, 600.0]])
+    checked = np.array([0.5, 4.0, 0.5])                  # the middle one at 400 mm steps
+    assert checker.segment_free(path[1], path[2], 4.0)
+    out = shortcut_compiled(checker, path, np.random.default_rng(1), 0.5, checked=checked)
+    assert out is None or _dense_free(gantry_cm, out, scene, 50.0)
+
+
+def test_a_refused_lazy_path_is_searched_again_at_the_resolution(gantry_cm, monkeypatch):
+    """When the simplification cannot certify the search's lazily checked path, the
+    planner searches again, checking each path found at the resolution, and answers a path
+    free on dense states (and says so in its statistics)."""
+    import planning.motion.planner as planner
+
+    scene = _slit_scene()
+    checker = MotionChecker(gantry_cm, scene)
+    real = planner.shortcut_compiled
+    calls = []
+
+    def refuse_first(*args, checked=None, **kw):
+        calls.append(checked is not None)
+        if checked is not None and len(calls) == 1:
+            return None
+        return real(*args, checked=checked, **kw)
+
+    monkeypatch.setattr(planner, "shortcut_compiled", refuse_first)
+    res = plan_motion(checker, [0.0, 600.0], [880.0, 600.0], time_limit=5.0, seed=3,
+                      trajectory=False, resolution=0.5)
+    assert res.success, res.message
+    assert calls[:2] == [True, False]                      # lazily found, then validated
+    assert res.stats["lazy_path_rejected"] is True
+    assert _dense_free(gantry_cm, np.asarray(res.path), scene, 50.0)
+
+
+@pytest.mark.parametrize("simplify", [True, False])
+def test_only_a_path_to_be_simplified_is_left_unchecked_at_the_resolution(
+        gantry_cm, monkeypatch, simplify):
+    """``simplify: false`` answers the search's path itself, so the search checks it at the
+    resolution when the trees meet; with simplification it does not (the simplification
+    certifies what it keeps). Either answer is free on dense states."""
+    import planning.motion.planner as planner
+
+    scene = _slit_scene()
+    checker = MotionChecker(gantry_cm, scene)
+    real = planner.rrt_connect_compiled
+    asked = []
+
+    def spy(*args, validate=True, **kw):
+        asked.append(validate)
+        return real(*args, validate=validate, **kw)
+
+    monkeypatch.setattr(planner, "rrt_connect_compiled", spy)
+    res = plan_motion(checker, [0.0, 600.0], [880.0, 600.0], time_limit=5.0, seed=2,
+                      trajectory=False, resolution=0.05, simplify=simplify)
+    assert res.success, res.message
+    assert asked == [not simplify]
+    assert _dense_free(gantry_cm, np.asarray(res.path), scene, 5.0)
