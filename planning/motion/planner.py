@@ -22,8 +22,9 @@ shortened with the checker that found it (compiled, every segment of the answer 
 the resolution as it is shortened; a path shortened in Python is checked once more before
 it is answered). The compiled search does not check its path at the resolution when it is
 to be shortened: most of it is shortcut away, and what the answer keeps of it is checked at
-the resolution by the shortening (bent about a state the finer check finds in collision);
-if that fails, the search runs again checking each path it finds at the resolution.
+the resolution by the shortening (bent about a state the finer check finds in collision;
+with the exact stage when the spheres alone refuse it); if that fails, the search runs
+again checking each path it finds at the resolution.
 ``auto`` with a time limit past ``AUTO_REFINE_AFTER`` s also hands the shortened path to
 RRT* as the bound to beat until ``AUTO_REFINE_SHARE`` of the time, then shortens the
 best path again. ``rrt_star`` searches with RRT* for the whole time limit.
@@ -429,6 +430,11 @@ def _search(checker, q_start, goals, planner, rng, stop, resolution, simplify, t
             # Compiled, with the checker the path was found with.
             shorter = shortcut_compiled(checker, path, rng, resolution, exact=mode == "exact",
                                         checked=checked)
+            if shorter is None and mode == "spheres" and exact:
+                # The spheres' slack (a gripper about its object, a wrist by its forearm)
+                # may be all that blocks the finer check: settle it exactly.
+                shorter = shortcut_compiled(checker, path, rng, resolution, exact=True,
+                                            checked=checked)
             if shorter is None:
                 # The search's lazily checked path could not be made free at
                 # ``resolution`` (bent about its states at fault): search again, checking

@@ -273,18 +273,46 @@ def test_a_refused_lazy_path_is_searched_again_at_the_resolution(gantry_cm, monk
     real = planner.shortcut_compiled
     calls = []
 
-    def refuse_first(*args, checked=None, **kw):
+    def refuse_lazy(*args, checked=None, **kw):
         calls.append(checked is not None)
-        if checked is not None and len(calls) == 1:
+        if checked is not None:
             return None
         return real(*args, checked=checked, **kw)
 
-    monkeypatch.setattr(planner, "shortcut_compiled", refuse_first)
+    monkeypatch.setattr(planner, "shortcut_compiled", refuse_lazy)
     res = plan_motion(checker, [0.0, 600.0], [880.0, 600.0], time_limit=5.0, seed=3,
                       trajectory=False, resolution=0.5)
     assert res.success, res.message
-    assert calls[:2] == [True, False]                      # lazily found, then validated
+    # Lazily found, refused on the spheres and exactly; then found again, validated.
+    assert calls == [True, True, False]
     assert res.stats["lazy_path_rejected"] is True
+    assert _dense_free(gantry_cm, np.asarray(res.path), scene, 50.0)
+
+
+def test_a_lazy_path_the_spheres_refuse_is_certified_exactly_before_a_new_search(
+        gantry_cm, monkeypatch):
+    """A path found on the spheres alone whose certification on the spheres fails is
+    certified again with the exact stage settling what the spheres flag, before any new
+    search: one search, the second certification exact."""
+    import planning.motion.planner as planner
+
+    scene = _slit_scene()
+    checker = MotionChecker(gantry_cm, scene)
+    real = planner.shortcut_compiled
+    calls = []
+
+    def refuse_on_spheres(*args, exact=False, checked=None, **kw):
+        calls.append((exact, checked is not None))
+        if checked is not None and not exact:
+            return None
+        return real(*args, exact=exact, checked=checked, **kw)
+
+    monkeypatch.setattr(planner, "shortcut_compiled", refuse_on_spheres)
+    res = plan_motion(checker, [0.0, 600.0], [880.0, 600.0], time_limit=5.0, seed=4,
+                      trajectory=False, resolution=0.5)
+    assert res.success, res.message
+    assert calls == [(False, True), (True, True)]
+    assert "lazy_path_rejected" not in res.stats
     assert _dense_free(gantry_cm, np.asarray(res.path), scene, 50.0)
 
 
