@@ -67,9 +67,10 @@ _ORDER_CACHE_SIZE = 4096
 #: Most flagged pairs collected for the exact stage of one configuration.
 _HIT_CAP = 256
 #: The scene's boxes and cylinders, and the largest link mesh (triangles) whose collisions
-#: with them the exact stage settles in compiled code (``planning.geometry.triangles``).
+#: with them the exact stage settles in compiled code (``planning.geometry.triangles``; its
+#: chunks keep a 40,000-triangle gripper mesh beside a box to a few of them).
 _SOLIDS = (KERNEL_CODES["box"], KERNEL_CODES["cylinder"])
-TRIANGLES_MAX = 5000
+TRIANGLES_MAX = 200_000
 #: Caps (mm) of the sphere bounds ``clearance`` tries in turn before its ``reach``.
 CLEARANCE_CAPS = (32.0, 128.0, 512.0)
 #: Scenes with more objects than this are screened by their distance grid.
@@ -260,8 +261,9 @@ class MotionChecker:
                 grown = par[c].copy()
                 if margin > 0.0:
                     grown[:3 if kind[c] == _SOLIDS[0] else 2] += margin
-                if triangles_meet_object(tri.tri, tri.lo, tri.hi, tri.first[a],
-                                         tri.first[a + 1], M[a], T_inv[c], kind[c], grown):
+                if triangles_meet_object(tri.tri, tri.lo, tri.hi, tri.cbox, tri.cstart,
+                                         tri.cfirst[a], tri.cfirst[a + 1], M[a], T_inv[c],
+                                         kind[c], grown):
                     return False
             else:
                 rest.append((a, c, is_self))

@@ -70,8 +70,9 @@ def warm_up() -> float:
         tri = MeshTriangles([np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])])
         eye = np.ascontiguousarray(np.eye(4)[:3])
         for kind in (KERNEL_CODES["box"], KERNEL_CODES["cylinder"]):
-            triangles_meet_object(tri.tri, tri.lo, tri.hi, tri.first[0], tri.first[1], eye,
-                                  eye, np.int64(kind), np.ones(4))
+            triangles_meet_object(tri.tri, tri.lo, tri.hi, tri.cbox, tri.cstart,
+                                  tri.cfirst[0], tri.cfirst[1], eye, eye, np.int64(kind),
+                                  np.ones(4))
         _done = True
         return time.perf_counter() - t0
 

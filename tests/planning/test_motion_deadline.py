@@ -191,8 +191,8 @@ with event.install_listener("numba:compile", seen):
     a, c = 0, 0
     grown = par[c].copy()
     ready = len(triangles_meet_object.signatures)   # loaded from the cache or compiled
-    triangles_meet_object(tri.tri, tri.lo, tri.hi, tri.first[a], tri.first[a + 1], M[a],
-                          T_inv[c], kind[c], grown)
+    triangles_meet_object(tri.tri, tri.lo, tri.hi, tri.cbox, tri.cstart, tri.cfirst[a],
+                          tri.cfirst[a + 1], M[a], T_inv[c], kind[c], grown)
     if ready == 0 or len(triangles_meet_object.signatures) != ready:
         seen.names.append("triangles_meet_object not readied by the warm-up")
 print("COMPILED", len(seen.names), seen.names)

@@ -9,15 +9,15 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from planning.geometry.registry import KERNEL_CODES
-from planning.geometry.triangles import MeshTriangles, triangles_meet_object
+from planning.geometry.triangles import CHUNK, MeshTriangles
 
 fcl = pytest.importorskip("fcl")
 BOX = KERNEL_CODES["box"]
 
 
-def triangles_meet_box(tri, lo, hi, a, b, Mk, T_inv, half):
-    """``triangles_meet_object`` for a box of half sides ``half``."""
-    return triangles_meet_object(tri, lo, hi, a, b, Mk, T_inv, BOX, np.r_[half, 0.0])
+def triangles_meet_box(mt, k, Mk, T_inv, half):
+    """``triangles_meet_object`` of link ``k`` of ``mt`` for a box of half sides ``half``."""
+    return mt.meets(k, Mk, T_inv, BOX, np.r_[half, 0.0])
 
 
 def _bvh(tri: np.ndarray):
@@ -61,9 +61,7 @@ def test_triangles_meet_boxes_as_fcl_says():
         link_pose, box_pose = _pose(rng, 40), _pose(rng, 40)
         mt = MeshTriangles([tri])
         T_inv = np.linalg.inv(box_pose)[:3]
-        ours = triangles_meet_box(mt.tri, mt.lo, mt.hi, 0, len(tri),
-                                  np.ascontiguousarray(link_pose[:3]),
-                                  np.ascontiguousarray(T_inv), 0.5 * size)
+        ours = triangles_meet_box(mt, 0, link_pose[:3], T_inv, 0.5 * size)
         ref = _fcl_hit(tri, link_pose, box_pose, size)
         assert ours == ref, f"case {case}: ours {ours}, fcl {ref}"
         agree += 1
@@ -84,10 +82,7 @@ def test_triangles_meet_cylinders_as_fcl_says():
         link_pose, cyl_pose = _pose(rng, 40), _pose(rng, 40)
         mt = MeshTriangles([tri])
         par = np.array([radius, 0.5 * height, 0.0, 0.0])
-        ours = triangles_meet_object(mt.tri, mt.lo, mt.hi, 0, len(tri),
-                                     np.ascontiguousarray(link_pose[:3]),
-                                     np.ascontiguousarray(np.linalg.inv(cyl_pose)[:3]),
-                                     code, par)
+        ours = mt.meets(0, link_pose[:3], np.linalg.inv(cyl_pose)[:3], code, par)
         ref = _fcl_cylinder_hit(tri, link_pose, cyl_pose, radius, height)
         assert ours == ref, f"case {case}: ours {ours}, fcl {ref}"
         hits += ref
@@ -102,17 +97,15 @@ def test_a_triangle_pierced_by_a_thin_cylinder():
     code = KERNEL_CODES["cylinder"]
     par = np.array([2.0, 10.0, 0.0, 0.0])
     eye = np.ascontiguousarray(np.eye(4)[:3])
-    assert triangles_meet_object(mt.tri, mt.lo, mt.hi, 0, 1, eye, eye, code, par)
+    assert mt.meets(0, eye, eye, code, par)
     T = np.eye(4)
     T[2, 3] = 10.5                                  # the cylinder from z 0.5 to 20.5
-    assert not triangles_meet_object(mt.tri, mt.lo, mt.hi, 0, 1, eye,
-                                     np.ascontiguousarray(np.linalg.inv(T)[:3]), code, par)
+    assert not mt.meets(0, eye, np.linalg.inv(T)[:3], code, par)
     # Lying along the triangle's plane, through it, edges far: a hit too.
     R = Rotation.from_euler("x", 90, degrees=True).as_matrix()
     T = np.eye(4)
     T[:3, :3] = R
-    assert triangles_meet_object(mt.tri, mt.lo, mt.hi, 0, 1, eye,
-                                 np.ascontiguousarray(np.linalg.inv(T)[:3]), code, par)
+    assert mt.meets(0, eye, np.linalg.inv(T)[:3], code, par)
 
 
 def test_a_triangle_inside_a_box_and_one_beside_it():
@@ -125,7 +118,49 @@ def test_a_triangle_inside_a_box_and_one_beside_it():
     eye = np.ascontiguousarray(np.eye(4)[:3])
     for tri, expected in ((inside, True), (beside, False), (on, True)):
         mt = MeshTriangles([tri])
-        assert triangles_meet_box(mt.tri, mt.lo, mt.hi, 0, 1, eye, eye, half) is expected
+        assert triangles_meet_box(mt, 0, eye, eye, half) is expected
+
+
+def test_a_mesh_of_thousands_of_triangles_in_chunks_meets_what_fcl_says():
+    """A link of 3,000 small triangles scattered over a 400 mm shell (Morton ordered,
+    chunked) and a second link before it: against 300 boxes and cylinders placed near the
+    shell, the chunked test answers as FCL on the whole mesh, and as the test of every
+    triangle one by one (a chunk is skipped only when its box misses the object's)."""
+    rng = np.random.default_rng(77)
+    n = 3000
+    u = rng.normal(size=(n, 3))
+    centre = 200.0 * u / np.linalg.norm(u, axis=1, keepdims=True)
+    tri = centre[:, None, :] + rng.normal(0, 6.0, (n, 3, 3))
+    other = rng.normal(0, 30.0, (5, 3, 3)) + 1000.0
+    mt = MeshTriangles([other, tri])
+    assert mt.cfirst[2] - mt.cfirst[1] == -(-n // CHUNK)
+    assert sorted(map(tuple, mt.tri[mt.first[1]:].reshape(n, 9))) \
+        == sorted(map(tuple, tri.reshape(n, 9)))          # the same triangles, reordered
+    one_by_one = MeshTriangles([t[None] for t in tri])
+    hits = 0
+    for case in range(300):
+        link_pose = _pose(rng, 20)
+        obj_pose = _pose(rng, 0)
+        d = rng.normal(size=3)
+        obj_pose[:3, 3] = 200.0 * d / np.linalg.norm(d) + rng.normal(0, 15, 3)
+        T_inv = np.linalg.inv(obj_pose)[:3]
+        if case % 2:
+            size = rng.uniform(2, 25, 3)
+            ours = triangles_meet_box(mt, 1, link_pose[:3], T_inv, 0.5 * size)
+            ref = _fcl_hit(tri, link_pose, obj_pose, size)
+            each = any(triangles_meet_box(one_by_one, k, link_pose[:3], T_inv, 0.5 * size)
+                       for k in range(n))
+        else:
+            code = KERNEL_CODES["cylinder"]
+            radius, height = rng.uniform(2, 15), rng.uniform(4, 40)
+            par = np.array([radius, 0.5 * height, 0.0, 0.0])
+            ours = mt.meets(1, link_pose[:3], T_inv, code, par)
+            ref = _fcl_cylinder_hit(tri, link_pose, obj_pose, radius, height)
+            each = any(one_by_one.meets(k, link_pose[:3], T_inv, code, par)
+                       for k in range(n))
+        assert ours == ref == each, f"case {case}: ours {ours}, fcl {ref}, each {each}"
+        hits += ref
+    assert 60 < hits < 240, hits
 
 
 def test_only_the_links_rows_are_tested():
@@ -137,9 +172,9 @@ def test_only_the_links_rows_are_tested():
     assert mt.first.tolist() == [0, 1, 1, 2]
     eye = np.ascontiguousarray(np.eye(4)[:3])
     half = np.array([5.0, 5.0, 5.0])
-    assert not triangles_meet_box(mt.tri, mt.lo, mt.hi, mt.first[0], mt.first[1], eye, eye,
-                                  half)
-    assert triangles_meet_box(mt.tri, mt.lo, mt.hi, mt.first[2], mt.first[3], eye, eye, half)
+    assert not triangles_meet_box(mt, 0, eye, eye, half)
+    assert not triangles_meet_box(mt, 1, eye, eye, half)
+    assert triangles_meet_box(mt, 2, eye, eye, half)
 
 
 # ---- in the motion planner's checker --------------------------------------------------------
