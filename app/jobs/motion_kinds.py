@@ -453,6 +453,13 @@ def warm_up(req: MotionRequest, collision_model: Any, scene: Any) -> None:
     checker.segment_free(a, b, req.resolution)
     checker.pairs(a)
     checker.clearance(np.stack([a, b]), req.resolution)
+    # The exact stage's shapes (FCL's trees of the link meshes: a quarter of a second for
+    # the UR5's) and the compiled stage's triangles, built once per model: here, not in the
+    # first plan whose search meets a flagged state.
+    from planning.collision import exact_stage
+
+    exact_stage(collision_model, scene)
+    checker._mesh_triangles()
     _WARMED.add(key)
 
 

@@ -306,3 +306,25 @@ def test_an_imported_robot_plans_in_a_job_with_its_meshes(jobs_client):
     for result in out["problems"]:
         assert not collides(cm, _dense(np.array(result["path"]), 0.0025), scene,
                             exact=True).any()
+
+
+def test_the_warm_up_builds_the_exact_shapes_and_triangles_of_a_meshed_robot():
+    """``motion_kinds.warm_up`` (before a worker's first plan of a kind of checker) builds
+    the imported robot's exact stage (FCL's trees of its meshes) and the compiled stage's
+    triangles, once per model: the first plan that meets a flagged state does not."""
+    from app.jobs import motion_kinds
+    from kinematics.urdf_import import import_robot
+    from planning.motion.checker import TRIANGLES_MAX
+    from planning.motion.request import robot_problem
+
+    robot = import_robot(_meshed_glt_zip(), "glt.zip", robot_id="glt_warm")
+    cm = RobotCollisionModel.from_imported(robot)
+    scene = CollisionScene.from_request(SCENE)
+    req = robot_problem(robot.model, START, {"q": GOAL})
+    assert "_exact" not in cm.__dict__ and TRIANGLES_MAX not in \
+        cm.__dict__.get("_mesh_triangles", {})
+    motion_kinds.warm_up(req, cm, scene)
+    assert "_exact" in cm.__dict__
+    tri = cm.__dict__["_mesh_triangles"][TRIANGLES_MAX]
+    k = cm.names.index("link_2")
+    assert tri.whole[k] and tri.first[k + 1] - tri.first[k] == 12      # the box's mesh
