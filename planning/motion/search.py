@@ -342,6 +342,7 @@ def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.G
         span = np.max(np.abs(np.diff(path, axis=0)) * work[11], axis=1)
         lazy = np.flatnonzero(coarse > fine)
         ns0[lazy] = np.maximum(1, np.ceil(span[lazy] / coarse[lazy] - 1e-12)).astype(np.int64)
+    certified = checked is None       # every segment of ``path`` checked at ``resolution``
     passes = (SHORTCUT_LAZY * fine, fine) if SHORTCUT_LAZY > 1 else (fine,)
     for step in passes:
         # First with new segments checked at a coarser step, then each segment not yet
@@ -356,14 +357,14 @@ def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.G
             n = rr.shortcut_run(R, S, buf, n, w, step, margin, int(attempts), int(patience),
                                 state, work, ns, SHORTCUT_LEAST_GAIN)
             n = rr.reduce_path(R, S, buf, n, w, step, margin, work, ns)
-        if step == fine:
+        if step == fine and certified:
             break
         m = rr.refine_path(R, S, buf, n, w, fine, margin, work, ns, lo, hi, state,
                            REPAIR_TRIES, REPAIR_MOST)
         if m > 0:
             n = m
             break
-        if checked is not None:
+        if not certified:
             buf[:len(path)] = path
             ns = ns0.copy()
             m = rr.refine_path(R, S, buf, len(path), w, fine, margin, work, ns, lo, hi,
@@ -373,6 +374,8 @@ def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.G
                 return None
             path = buf[:m].copy()
             rr.fill_steps(path, m, fine, work, ns0)
+            certified = True
+            n = m             # the answer if no pass is left: the path as found, certified
     checker.checks += int(count[0]) - c0
     return buf[:n].copy()
 

@@ -225,13 +225,18 @@ def _slit_scene() -> CollisionScene:
         box("lower", (20.0, h, 400), (450.0, -150.0 - h / 2, 0))])
 
 
+@pytest.mark.parametrize("lazy", [4, 1])
 @pytest.mark.parametrize("seed", range(4))
-def test_a_coarsely_checked_path_is_certified_or_refused(gantry_cm, seed):
+def test_a_coarsely_checked_path_is_certified_or_refused(gantry_cm, seed, lazy, monkeypatch):
     """A segment checked at 300 mm steps only (``checked``), its coarse states clear of a
-    20 mm wall they straddle: the simplification never answers it as it is. It answers a
-    path whose every state 50 mm apart is free by the collision package (bent through the
-    slit), or None (the caller searches again)."""
+    20 mm wall they straddle: the simplification never answers it as it is, whether its
+    shortcuts start at a coarser step (``SHORTCUT_LAZY`` 4) or at the resolution (1). It
+    answers a path whose every state 50 mm apart is free by the collision package (bent
+    through the slit), or None (the caller searches again)."""
+    import planning.motion.search as search
     from planning.motion.search import shortcut_compiled
+
+    monkeypatch.setattr(search, "SHORTCUT_LAZY", lazy)
 
     scene = _slit_scene()
     checker = MotionChecker(gantry_cm, scene)
