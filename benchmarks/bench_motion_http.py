@@ -16,7 +16,9 @@ the hand-over to a compute worker, the checker's preparation, the work after the
 clock stops (clearance of the path) and the answer's encoding and transfer.
 
 Prints one line per problem (medians of its calls, stored and inline side by side), then the
-median and p95 over every call; the goals of the product are a median wall of at most 10 ms
+median and p95 over every call and how many of the distinct paths answered are free on the
+Panda's meshes (verified outside the service with python-fcl, as ``bench_motion.py`` does);
+the goals of the product are a median wall of at most 10 ms
 and an overhead of at most 5 ms with a stored scene. Equal seeds give equal answers unless
 the search ends near the time limit (the planner's phases switch on the clock): the
 benchmark reports whether every call of a problem answered the same path (``same``).
@@ -43,9 +45,18 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_collision import Reference, mbm_scene  # noqa: E402
 from bench_import_http import free_port, start_service  # noqa: E402
+from bench_motion import verify  # noqa: E402
 from bench_urdf_import import zip_folder  # noqa: E402
-from mbm_problems import FAMILIES, PANDA_FOLDER, SHARED, read_request  # noqa: E402
+from mbm_problems import (  # noqa: E402
+    FAMILIES,
+    PANDA_FOLDER,
+    SHARED,
+    import_named,
+    read_request,
+    scene_ids,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The body's settings besides start, goal and scene.
@@ -78,6 +89,11 @@ def main() -> None:
                     help="the service's compute workers (default: the service's)")
     args = ap.parse_args()
 
+    # Every distinct path answered is verified here, outside the service: python-fcl on the
+    # Panda's meshes (bench_motion.verify: ends, limits, every segment at 0.01 rad).
+    robot = import_named("panda")
+    ref = Reference(robot)
+    checked: dict[str, str] = {}     # problem/path -> '' (free) or why not
     data_dir = tempfile.mkdtemp(prefix="kinoplan-bench-")
     port = free_port()
     proc = start_service(data_dir, port, args.compute_workers)
@@ -124,6 +140,12 @@ def main() -> None:
                         rows.append((scene_id, mode, *calls[-1], ans["status"]))
                     line[mode] = [statistics.median(c[k] for c in calls) for k in range(3)]
                 same = all(p == paths[0] for p in paths)
+                objects, scene_data = mbm_scene(PANDA_FOLDER / family / f"scene{index:04d}.yaml")
+                ref.set_scene(objects)
+                ids = scene_ids(scene_data)
+                for k, path in enumerate(p for i, p in enumerate(paths) if p not in paths[:i]):
+                    checked[f"{scene_id}#{k}"] = verify(robot, ref, ids, np.array(path), start,
+                                                        goal, 0.01) if path else "no path"
                 s, i = line["stored"], line["inline"]
                 print(f"{family + '/' + f'{index:04d}':<26} {n_objects:>7} | "
                       f"{s[0] * 1e3:12.2f} {s[1] * 1e3:6.2f} {s[2] * 1e3:6.2f} "
@@ -149,6 +171,10 @@ def main() -> None:
               f"{statistics.median(plan) * 1e3:.2f} / {p95(plan) * 1e3:.2f} (simplify "
               f"{statistics.median(simp) * 1e3:.2f} / {p95(simp) * 1e3:.2f}), overhead "
               f"{statistics.median(over) * 1e3:.2f} / {p95(over) * 1e3:.2f}")
+    bad = {k: why for k, why in checked.items() if why}
+    print(f"distinct paths answered: {len(checked)}, free on the meshes (python-fcl, 0.01 rad): "
+          f"{len(checked) - len(bad)}" + "".join(f"\n  NOT FREE {k}: {why}"
+                                               for k, why in bad.items()))
     stored = [r for r in rows if r[1] == "stored"]
     if stored:
         wall = statistics.median(r[2] for r in stored)
