@@ -540,6 +540,8 @@ def summary(rows: list[Row], time_limit: float) -> dict:
         "verified": sum(bool(r.verified) for r in solved),
         "within_limit": sum(r.solved and r.verified and r.time_s is not None
                             and r.time_s <= time_limit for r in valid),
+        "within_1s": sum(r.solved and r.verified and r.time_s is not None
+                         and r.time_s <= 1.0 for r in valid),
         "median_s": median(r.time_s for r in solved), "p95_s": p95(r.time_s for r in solved),
         "median_call_s": median(r.call_s for r in solved),
         "median_len": median(r.length for r in solved if r.verified),
@@ -612,6 +614,13 @@ def print_tables(rows: list[Row], args) -> None:
               f"{args.time_limit:g} s: {verdict(ok1)} ({s['within_limit']}/{s['valid']})")
         print(f"  {robot}: every returned path verified: {verdict(ok2)} "
               f"({s['verified']}/{s['solved']})")
+        ok_1s = s["within_1s"] == s["valid"] and s["valid"] > 0
+        print(f"  {robot}: every valid problem solved and verified within 1 s: "
+              f"{verdict(ok_1s)} ({s['within_1s']}/{s['valid']})")
+        for what, value, goal in (("median", s["median_s"], 0.005),
+                                  ("p95", s["p95_s"], 0.100)):
+            print(f"  {robot}: {what} planner time <= {goal * 1e3:g} ms: "
+                  f"{verdict(value is not None and value <= goal)} ({fmt(value, 1e3)} ms)")
         print(f"  {robot}: median time >= 10x below OMPL's (same problems): "
               f"{verdict(ok3) if s['ratio'] is not None else 'n/a'} (OMPL / ours = "
               f"{fmt(s['ratio'], 1, 1)} on the {s['both']} problems both solved; OMPL solved "
@@ -692,7 +701,8 @@ def print_vamp(rows: list[Row], args, load: tuple[float, float]) -> None:
             f"{fmt(t_ours / t_w if t_ours and t_w else None, 1, 0)}x); ours / VAMP median "
             f"length = {fmt(l_ours)} / {fmt(l_v)} rad = "
             f"{fmt(l_ours / l_v if l_ours and l_v else None, 1, 3)} (on the {len(blen)} of "
-            f"them ours verified; VAMP's paths counted whether free or not)")
+            f"them ours verified; VAMP's paths counted whether free or not): <= 1.05 "
+            f"{verdict(bool(l_ours and l_v and l_ours / l_v <= 1.05))}")
     print("\nRatios:")
     print("\n".join(ratios))
     print("\nVAMP's simplified paths that are not free on the meshes, by the deepest fcl "

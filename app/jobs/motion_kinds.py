@@ -457,9 +457,10 @@ def warm_up(req: MotionRequest, collision_model: Any, scene: Any) -> None:
     # the UR5's) and the compiled stage's triangles, built once per model: here, not in the
     # first plan whose search meets a flagged state.
     from planning.collision import exact_stage
+    from planning.motion.checker import TRIANGLES_MAX
 
     exact_stage(collision_model, scene)
-    checker._mesh_triangles()
+    collision_model.mesh_triangles(TRIANGLES_MAX)
     _WARMED.add(key)
 
 

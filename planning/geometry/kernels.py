@@ -23,7 +23,7 @@ from numba import njit
 from .registry import KERNEL_CODES
 
 __all__ = ["box_point", "cylinder_point", "sphere_point", "capsule_point", "local_distance",
-           "local_within", "ballset_distance", "ballset_within", "object_distance",
+           "local_within", "ballset_distance", "ballset_within", "to_local", "object_distance",
            "object_within"]
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
@@ -166,6 +166,18 @@ def ballset_distance(p, reach, s, balls, cells, set_meta):
 
 
 # ---- any object -----------------------------------------------------------------------------
+@njit(inline="always", **_JIT)
+def to_local(p, o, T_inv):
+    """The world point ``p`` in the frame of object ``o`` (``T_inv[o] (3, 4)``: world to
+    object)."""
+    p0 = p[0]
+    p1 = p[1]
+    p2 = p[2]
+    return (T_inv[o, 0, 0] * p0 + T_inv[o, 0, 1] * p1 + T_inv[o, 0, 2] * p2 + T_inv[o, 0, 3],
+            T_inv[o, 1, 0] * p0 + T_inv[o, 1, 1] * p1 + T_inv[o, 1, 2] * p2 + T_inv[o, 1, 3],
+            T_inv[o, 2, 0] * p0 + T_inv[o, 2, 1] * p1 + T_inv[o, 2, 2] * p2 + T_inv[o, 2, 3])
+
+
 @njit(**_JIT)
 def object_distance(p, reach, o, kind, T_inv, par, balls, cells, set_meta):
     """Signed distance from the world point ``p`` to object ``o`` of code ``kind[o]``,
@@ -173,9 +185,7 @@ def object_distance(p, reach, o, kind, T_inv, par, balls, cells, set_meta):
     k = kind[o]
     if k == BALLS:
         return ballset_distance(p, reach, int(par[o, 0]), balls, cells, set_meta)
-    x = T_inv[o, 0, 0] * p[0] + T_inv[o, 0, 1] * p[1] + T_inv[o, 0, 2] * p[2] + T_inv[o, 0, 3]
-    y = T_inv[o, 1, 0] * p[0] + T_inv[o, 1, 1] * p[1] + T_inv[o, 1, 2] * p[2] + T_inv[o, 1, 3]
-    z = T_inv[o, 2, 0] * p[0] + T_inv[o, 2, 1] * p[1] + T_inv[o, 2, 2] * p[2] + T_inv[o, 2, 3]
+    x, y, z = to_local(p, o, T_inv)
     return local_distance(k, x, y, z, par, o)
 
 
@@ -186,7 +196,5 @@ def object_within(p, reach, o, kind, T_inv, par, balls, cells, set_meta):
     k = kind[o]
     if k == BALLS:
         return ballset_within(p, reach, int(par[o, 0]), balls, cells, set_meta)
-    x = T_inv[o, 0, 0] * p[0] + T_inv[o, 0, 1] * p[1] + T_inv[o, 0, 2] * p[2] + T_inv[o, 0, 3]
-    y = T_inv[o, 1, 0] * p[0] + T_inv[o, 1, 1] * p[1] + T_inv[o, 1, 2] * p[2] + T_inv[o, 1, 3]
-    z = T_inv[o, 2, 0] * p[0] + T_inv[o, 2, 1] * p[1] + T_inv[o, 2, 2] * p[2] + T_inv[o, 2, 3]
+    x, y, z = to_local(p, o, T_inv)
     return local_within(k, x, y, z, par, o, reach)

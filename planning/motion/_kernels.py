@@ -43,13 +43,10 @@ from numba import njit
 
 from planning.geometry.kernels import (
     BALLS,
-    BOX,
-    CAPSULE,
-    CYLINDER,
-    SPHERE,
-    cylinder_point,
+    ballset_within,
+    local_within,
     object_distance,
-    object_within,
+    to_local,
 )
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
@@ -240,58 +237,14 @@ def _table_flagged(q, margin, tab_i, tab_f, tab_values, hits, n_hits, cap):
 # ---- one configuration ------------------------------------------------------------------------
 @njit(inline="always", **_JIT)
 def _object_near(p, reach, o, kind, T_inv, par, balls, cells, set_meta):
-    """``object_within`` (``planning.geometry.kernels``: the same tests) written into the
-    loops that call it: a call passing its nine arrays cost about 100 ns, more than the test
-    of a box or a cylinder itself, and the group and leaf balls make many."""
+    """``object_within`` (``planning.geometry.kernels``) written into the loops that call
+    it: a call passing its nine arrays cost about 100 ns, more than the test of a box or a
+    cylinder itself, and the group and leaf balls make many."""
     k = kind[o]
     if k == BALLS:
-        return object_within(p, reach, o, kind, T_inv, par, balls, cells, set_meta)
-    p0 = p[0]
-    p1 = p[1]
-    p2 = p[2]
-    x = T_inv[o, 0, 0] * p0 + T_inv[o, 0, 1] * p1 + T_inv[o, 0, 2] * p2 + T_inv[o, 0, 3]
-    y = T_inv[o, 1, 0] * p0 + T_inv[o, 1, 1] * p1 + T_inv[o, 1, 2] * p2 + T_inv[o, 1, 3]
-    z = T_inv[o, 2, 0] * p0 + T_inv[o, 2, 1] * p1 + T_inv[o, 2, 2] * p2 + T_inv[o, 2, 3]
-    if k == BOX:
-        ox = max(abs(x) - par[o, 0], 0.0)
-        oy = max(abs(y) - par[o, 1], 0.0)
-        oz = max(abs(z) - par[o, 2], 0.0)
-        return ox * ox + oy * oy + oz * oz <= reach * reach
-    if k == CYLINDER:
-        return cylinder_point(x, y, z, par, o) <= reach
-    if k == SPHERE:
-        lim = par[o, 0] + reach
-        return x * x + y * y + z * z <= lim * lim
-    if k == CAPSULE:
-        zz = min(max(z, -par[o, 1]), par[o, 1])
-        lim = par[o, 0] + reach
-        return x * x + y * y + (z - zz) * (z - zz) <= lim * lim
-    return object_within(p, reach, o, kind, T_inv, par, balls, cells, set_meta)
-
-
-@njit(inline="always", **_JIT)
-def _within_any(p, reach, kind, T_inv, par, aabb, grid, grid_meta, scene_box, balls, cells,
-                set_meta, among, n_among, out):
-    """The objects of ``among[:n_among]`` that may be within ``reach`` of ``p``, into
-    ``out`` (their number). With a distance grid (``grid_meta[3] > 0``) whose bound clears
-    ``p``, none."""
-    if grid_meta[3] > 0.0 and _grid_bound(p, grid, grid_meta, scene_box) > reach:
-        return 0
-    n = 0
-    p0 = p[0]           # held in registers: the stores to ``out`` might alias ``p``
-    p1 = p[1]
-    p2 = p[2]
-    r2 = reach * reach
-    for i in range(n_among):
-        o = among[i]
-        gx = max(aabb[o, 0] - p0, p0 - aabb[o, 3], 0.0)
-        gy = max(aabb[o, 1] - p1, p1 - aabb[o, 4], 0.0)
-        gz = max(aabb[o, 2] - p2, p2 - aabb[o, 5], 0.0)
-        if gx * gx + gy * gy + gz * gz <= r2 and _object_near(p, reach, o, kind, T_inv,
-                                                               par, balls, cells, set_meta):
-            out[n] = o
-            n += 1
-    return n
+        return ballset_within(p, reach, int(par[o, 0]), balls, cells, set_meta)
+    x, y, z = to_local(p, o, T_inv)
+    return local_within(k, x, y, z, par, o, reach)
 
 
 @njit(**_JIT)

@@ -337,11 +337,8 @@ def shortcut_compiled(checker: MotionChecker, path: np.ndarray, rng: np.random.G
     ns0 = np.zeros(len(buf), dtype=np.int64)
     rr.fill_steps(buf, n, fine, work, ns0)
     if checked is not None:
-        # As ``_rrt._steps`` counts them, at each segment's own step.
-        coarse = np.asarray(checked, dtype=float)
-        span = np.max(np.abs(np.diff(path, axis=0)) * work[11], axis=1)
-        lazy = np.flatnonzero(coarse > fine)
-        ns0[lazy] = np.maximum(1, np.ceil(span[lazy] / coarse[lazy] - 1e-12)).astype(np.int64)
+        for i in np.flatnonzero(np.asarray(checked, dtype=float) > fine):
+            ns0[i] = checker.steps(path[i], path[i + 1], float(checked[i]))
     certified = checked is None       # every segment of ``path`` checked at ``resolution``
     passes = (SHORTCUT_LAZY * fine, fine) if SHORTCUT_LAZY > 1 else (fine,)
     for step in passes:
